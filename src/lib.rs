@@ -1,0 +1,1 @@
+//! Holds nothing: the loop tests live in tests/.
