@@ -1,0 +1,1 @@
+//! Scanner geometry (being written).
