@@ -1,1 +1,36 @@
-fn main() {}
+//! `scanhil`, the host program: runs scans, analyses controllers, identifies the plant and
+//! decodes recordings. Each subcommand lives in its own module under `commands/`.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod commands;
+
+/// The scanhil host: scans, control analysis, identification and protocol tools.
+#[derive(Debug, Parser)]
+#[command(name = "scanhil", version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Decode a candump log, an SLCAN stream or an ILD 2300 byte stream into JSON lines.
+    Decode(commands::decode::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Decode(args) => commands::decode::run(args),
+    };
+    match result {
+        Ok(code) => code,
+        Err(err) => {
+            eprintln!("scanhil: error: {err:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

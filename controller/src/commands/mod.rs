@@ -1,0 +1,3 @@
+//! One module per `scanhil` subcommand: its clap `Args` and a `run` returning the exit code.
+
+pub mod decode;

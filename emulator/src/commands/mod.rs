@@ -1,0 +1,4 @@
+//! One module per `scanhil-emulator` subcommand: its clap `Args` and a `run` returning the
+//! exit code.
+
+pub mod probe;
