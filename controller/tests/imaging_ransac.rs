@@ -1,0 +1,156 @@
+//! RANSAC base plane and feature height on synthetic scenes with known answers.
+
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use scanhil_controller::imaging::feature::{
+    FeatureError, FeatureParams, FeatureSelection, Region, feature_height,
+};
+use scanhil_controller::imaging::ransac::{Plane, RansacError, RansacParams, fit_plane};
+
+/// A plane tilted by a few degrees (normal (0.05, -0.03, 1) normalised) through z = -130.
+fn tilted_z(x: f64, y: f64) -> f64 {
+    -130.0 - 0.05 * x + 0.03 * y
+}
+
+#[test]
+fn recovers_a_tilted_plane_among_40_percent_outliers() {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let noise = Normal::new(0.0, 0.02).unwrap();
+    let mut points = Vec::new();
+    for i in 0..3000 {
+        let (x, y) = (rng.random_range(-6.0..6.0), rng.random_range(-9.0..9.0));
+        let z = if i % 5 < 2 {
+            tilted_z(x, y) + rng.random_range(-5.0..20.0) // outlier
+        } else {
+            tilted_z(x, y) + noise.sample(&mut rng)
+        };
+        points.push([x, y, z]);
+    }
+    let params = RansacParams::default();
+    let fit = fit_plane(&points, &params).unwrap();
+    let truth = Plane::through(
+        [0.0, 0.0, tilted_z(0.0, 0.0)],
+        [1.0, 0.0, tilted_z(1.0, 0.0)],
+        [0.0, 1.0, tilted_z(0.0, 1.0)],
+    )
+    .unwrap();
+    let dn: f64 = (0..3)
+        .map(|k| (fit.plane.normal[k] - truth.normal[k]).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(
+        dn < 1e-3,
+        "normal {:?} vs {:?}",
+        fit.plane.normal,
+        truth.normal
+    );
+    assert!((fit.plane.z_at_mm(0.0, 0.0).unwrap() + 130.0).abs() < 0.01);
+    assert!((fit.plane.tilt_rad() - truth.tilt_rad()).abs() < 1e-3);
+    // About 60 % inliers (plus the few outliers that land inside the band).
+    assert!(fit.inliers >= 1750 && fit.inliers < 1900, "{}", fit.inliers);
+    // Noise 0.02 mm, plus ~30 outliers uniform inside the +-0.3 mm band (rms 0.17 mm).
+    assert!(
+        fit.inlier_rms_mm > 0.02 && fit.inlier_rms_mm < 0.035,
+        "{}",
+        fit.inlier_rms_mm
+    );
+    assert!(fit.iterations >= params.min_iterations && fit.iterations < params.max_iterations);
+    // Seeded: the same seed gives the same fit, bit for bit.
+    assert_eq!(fit_plane(&points, &params).unwrap(), fit);
+}
+
+#[test]
+fn refuses_what_it_cannot_fit() {
+    let p = RansacParams::default();
+    assert_eq!(
+        fit_plane(&[[0.0, 0.0, 0.0], [1.0, 0.0, f64::NAN]], &p),
+        Err(RansacError::TooFewPoints { found: 1 })
+    );
+    let line: Vec<[f64; 3]> = (0..10).map(|i| [i as f64, 2.0 * i as f64, 0.0]).collect();
+    assert!(matches!(
+        fit_plane(&line, &p),
+        Err(RansacError::Degenerate { .. })
+    ));
+    let bad = RansacParams {
+        inlier_threshold_mm: -1.0,
+        ..p
+    };
+    let err = fit_plane(&line, &bad).unwrap_err().to_string();
+    assert!(err.contains("inlier_threshold_mm = -1"), "{err}");
+}
+
+/// A Duplo-like scene on the tilted plane: a hollow stud (outer radius 4.7 mm, inner 3.4 mm,
+/// height 4.663 mm) at the origin, sampled on a 0.1 mm lattice with N(0, sigma) noise.
+fn stud_scene(sigma_mm: f64, seed: u64) -> Vec<[f64; 3]> {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let noise = Normal::new(0.0, sigma_mm).unwrap();
+    let mut points = Vec::new();
+    for i in -70..=70 {
+        for j in -90..=90 {
+            let (x, y) = (i as f64 * 0.1, j as f64 * 0.1);
+            let r = x.hypot(y);
+            let top = if (3.4..=4.7).contains(&r) { 4.663 } else { 0.0 };
+            // The stud's height is along the plane's normal; over a 3 deg tilt the vertical
+            // offset differs from it by cos(tilt), which the perpendicular height undoes.
+            let n = [0.05, -0.03, 1.0];
+            let norm = (n[0] * n[0] + n[1] * n[1] + 1.0f64).sqrt();
+            let base = [x, y, tilted_z(x, y)];
+            let p = [
+                base[0] + top * n[0] / norm,
+                base[1] + top * n[1] / norm,
+                base[2] + top / norm + noise.sample(&mut rng),
+            ];
+            points.push(p);
+        }
+    }
+    points
+}
+
+#[test]
+fn stud_height_above_threshold_matches_the_truth() {
+    let points = stud_scene(0.18, 11);
+    let m = feature_height(&points, &FeatureParams::default()).unwrap();
+    // The mean of n noisy samples: standard error 0.18 / sqrt(n) (noise is vertical, the
+    // height perpendicular, a 0.2 % difference).
+    let stderr = 0.18 / (m.points as f64).sqrt();
+    assert!(m.points > 1000, "{}", m.points);
+    assert!((m.height_mm - 4.663).abs() < 5.0 * stderr + 0.005, "{m:?}");
+    // The threshold cuts the low tail of the noise only 2.6 mm below the mean: no effect.
+    assert!((m.std_mm - 0.18).abs() < 0.02, "{}", m.std_mm);
+    assert!((m.median_mm - 4.663).abs() < 0.03);
+}
+
+#[test]
+fn stud_height_inside_an_explicit_region_matches_the_truth() {
+    let points = stud_scene(0.05, 12);
+    let params = FeatureParams {
+        selection: FeatureSelection::Inside {
+            region: Region::Rect {
+                x_min_mm: -0.5,
+                x_max_mm: 0.5,
+                y_min_mm: 3.7,
+                y_max_mm: 4.4,
+            },
+        },
+        ..FeatureParams::default()
+    };
+    let m = feature_height(&points, &params).unwrap();
+    assert!((m.height_mm - 4.663).abs() < 0.01, "{m:?}");
+    assert!((m.std_mm - 0.05).abs() < 0.02, "{}", m.std_mm);
+    // A region with nothing in it.
+    let empty = FeatureParams {
+        selection: FeatureSelection::Inside {
+            region: Region::Disc {
+                x_mm: 100.0,
+                y_mm: 0.0,
+                radius_mm: 1.0,
+            },
+        },
+        ..FeatureParams::default()
+    };
+    assert_eq!(
+        feature_height(&points, &empty),
+        Err(FeatureError::TooFewFeaturePoints { points: 0 })
+    );
+}
