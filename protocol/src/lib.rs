@@ -2,8 +2,12 @@
 //! scanhil wire format, shared by the emulator and the controller.
 //!
 //! # Layout
+//! - [`can`]: CAN identifiers and frames (classical, remote, FD), validated at construction.
+//! - [`slcan`]: the SLCAN (Lawicel) line protocol: incremental decoder and encoder.
 //! - [`plant_units`]: the mirror node's device contract: units, scalings, axis rotation.
 //! - [`ild`]: the ILD 2300 sensor's RS422 values and (to come) its byte stream and commands.
 
+pub mod can;
 pub mod ild;
 pub mod plant_units;
+pub mod slcan;
