@@ -1,0 +1,186 @@
+//! `scanhil reconstruct`: a recording of samples to a point cloud, a height map and a report.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
+use scanhil_controller::imaging::feature::{FeatureParams, FeatureSelection, Region};
+use scanhil_controller::imaging::fill::FillMethod;
+use scanhil_controller::imaging::grid::GridMethod;
+use scanhil_controller::imaging::pipeline::{ImagingOptions, image_samples, write_outputs};
+use scanhil_controller::imaging::ply::PlyEncoding;
+use scanhil_controller::imaging::ransac::RansacParams;
+use scanhil_controller::imaging::recording::read_recording;
+use scanhil_geometry::GeometryModel;
+use scanhil_protocol::ild::MeasuringRange;
+
+/// Arguments of `scanhil reconstruct`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The recording: CSV (header t_s,d_alpha_rad,d_beta_rad,z_meas_mm|ild_raw) or JSON lines.
+    input: PathBuf,
+    /// Folder for points.ply, height_map.png, height_map.csv and report.json.
+    #[arg(long, default_value = "reconstruction")]
+    out_dir: PathBuf,
+    /// Reconstruction model: the paper's eq. 1-3 or the exact reflection.
+    #[arg(long, value_enum, default_value_t = Model::SmallAngle)]
+    model: Model,
+    /// PLY data encoding.
+    #[arg(long, value_enum, default_value_t = Encoding::Binary)]
+    ply: Encoding,
+    /// Height map cell size, mm.
+    #[arg(long, default_value_t = 0.1)]
+    pitch_mm: f64,
+    /// Gridding: per-cell mean, or inverse-distance weighting within --radius-pitches.
+    #[arg(long, value_enum, default_value_t = Gridding::InverseDistance)]
+    grid: Gridding,
+    /// Inverse-distance search radius, in cell pitches.
+    #[arg(long, default_value_t = 1.0)]
+    radius_pitches: f64,
+    /// How to fill cells no sample reached.
+    #[arg(long, value_enum, default_value_t = Fill::None)]
+    fill: Fill,
+    /// Map heights above the RANSAC base plane instead of z_s.
+    #[arg(long)]
+    subtract_plane: bool,
+    /// Measure the height of a feature above the base plane.
+    #[arg(long)]
+    feature_height: bool,
+    /// Feature points: higher than this above the plane, mm.
+    #[arg(long, default_value_t = 2.0)]
+    min_height_mm: f64,
+    /// Feature points: farther than this from any lower point, mm.
+    #[arg(long, default_value_t = 0.3)]
+    edge_margin_mm: f64,
+    /// Feature points: those inside this rectangle (x_min,x_max,y_min,y_max in mm) instead.
+    #[arg(long, value_delimiter = ',', num_args = 4)]
+    feature_rect: Option<Vec<f64>>,
+    /// Fit the base plane only to points inside this rectangle (x_min,x_max,y_min,y_max).
+    #[arg(long, value_delimiter = ',', num_args = 4)]
+    plane_rect: Option<Vec<f64>>,
+    /// RANSAC inlier distance, mm.
+    #[arg(long, default_value_t = 0.3)]
+    ransac_threshold_mm: f64,
+    /// RANSAC seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Start of the sensor's measuring range (for ild_raw), mm.
+    #[arg(long, default_value_t = MeasuringRange::ILD2300_100.start_mm)]
+    range_start_mm: f64,
+    /// Span of the sensor's measuring range (for ild_raw), mm.
+    #[arg(long, default_value_t = MeasuringRange::ILD2300_100.span_mm)]
+    range_span_mm: f64,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum Model {
+    SmallAngle,
+    ExactReflection,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum Encoding {
+    Binary,
+    Ascii,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum Gridding {
+    CellMean,
+    InverseDistance,
+}
+
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum Fill {
+    None,
+    Nearest,
+    Diffusion,
+}
+
+fn rect(v: &[f64]) -> Region {
+    Region::Rect {
+        x_min_mm: v[0],
+        x_max_mm: v[1],
+        y_min_mm: v[2],
+        y_max_mm: v[3],
+    }
+}
+
+/// Runs `scanhil reconstruct`.
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let range = MeasuringRange {
+        start_mm: args.range_start_mm,
+        span_mm: args.range_span_mm,
+    };
+    let recording = read_recording(&args.input, &range)?;
+    let ransac = RansacParams {
+        inlier_threshold_mm: args.ransac_threshold_mm,
+        seed: args.seed,
+        ..RansacParams::default()
+    };
+    let feature = args.feature_height.then(|| FeatureParams {
+        plane_region: args.plane_rect.as_deref().map_or(Region::All, rect),
+        selection: match &args.feature_rect {
+            Some(v) => FeatureSelection::Inside { region: rect(v) },
+            None => FeatureSelection::AboveThreshold {
+                min_height_mm: args.min_height_mm,
+                edge_margin_mm: args.edge_margin_mm,
+            },
+        },
+        ransac,
+    });
+    let options = ImagingOptions {
+        model: match args.model {
+            Model::SmallAngle => GeometryModel::SmallAngle,
+            Model::ExactReflection => GeometryModel::ExactReflection,
+        },
+        pitch_mm: args.pitch_mm,
+        grid: match args.grid {
+            Gridding::CellMean => GridMethod::CellMean,
+            Gridding::InverseDistance => GridMethod::InverseDistance {
+                radius_pitches: args.radius_pitches,
+                power: 2.0,
+            },
+        },
+        fill: match args.fill {
+            Fill::None => FillMethod::None,
+            Fill::Nearest => FillMethod::Nearest,
+            Fill::Diffusion => FillMethod::Diffusion,
+        },
+        subtract_plane: args.subtract_plane,
+        ransac,
+        feature,
+        ..ImagingOptions::default()
+    };
+    let imaging = image_samples(&recording.samples, &options)
+        .with_context(|| format!("imaging {}", args.input.display()))?;
+    let encoding = match args.ply {
+        Encoding::Binary => PlyEncoding::BinaryLittleEndian,
+        Encoding::Ascii => PlyEncoding::Ascii,
+    };
+    let report = write_outputs(&imaging, &args.out_dir, encoding, recording.samples.len())?;
+    println!(
+        "{}: {} samples, {} points ({} missing), model {}, {}x{} cells of {} mm, coverage {:.3}",
+        args.input.display(),
+        report.samples,
+        report.points,
+        report.missing_samples,
+        report.model,
+        report.grid.nx,
+        report.grid.ny,
+        report.grid.pitch_mm,
+        report.coverage_fraction
+    );
+    if let Some(f) = &report.feature {
+        println!(
+            "feature height {:.4} mm, std {:.4} mm over {} points (plane: {} inliers, tilt {:.3} deg)",
+            f.height_mm,
+            f.std_mm,
+            f.points,
+            f.plane.inliers,
+            f.plane.plane.tilt_rad().to_degrees()
+        );
+    }
+    println!("wrote {}", args.out_dir.display());
+    Ok(ExitCode::SUCCESS)
+}
