@@ -19,12 +19,15 @@ struct Cli {
 enum Command {
     /// Decode a candump log, an SLCAN stream or an ILD 2300 byte stream into JSON lines.
     Decode(commands::decode::Args),
+    /// Reconstruct a recording of samples: PLY points, height map PNG/CSV, JSON report.
+    Reconstruct(commands::reconstruct::Args),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Decode(args) => commands::decode::run(args),
+        Command::Reconstruct(args) => commands::reconstruct::run(args),
     };
     match result {
         Ok(code) => code,

@@ -1,3 +1,4 @@
 //! One module per `scanhil` subcommand: its clap `Args` and a `run` returning the exit code.
 
 pub mod decode;
+pub mod reconstruct;
