@@ -66,10 +66,11 @@ usage() {
 
 # Checks the numeric settings, so that a typo fails here and not as a confusing QEMU error.
 check_settings() {
-    local name value
-    for name in VM_TIMEOUT_S VM_BOOT_TIMEOUT_S VM_CPUS VM_MEMORY_MB; do
-        value=${!name}
-        [[ $value =~ ^[1-9][0-9]*$ ]] || die "SCANHIL_${name#VM_} must be a positive whole number, not '$value'"
+    local setting value
+    for setting in SCANHIL_VM_TIMEOUT:$VM_TIMEOUT_S SCANHIL_VM_BOOT_TIMEOUT:$VM_BOOT_TIMEOUT_S \
+        SCANHIL_VM_CPUS:$VM_CPUS SCANHIL_VM_MEMORY_MB:$VM_MEMORY_MB; do
+        value=${setting#*:}
+        [[ $value =~ ^[1-9][0-9]*$ ]] || die "${setting%%:*} must be a positive whole number, not '$value'"
     done
     case $VM_ACCEL in auto | tcg | kvm) ;; *) die "SCANHIL_VM_ACCEL must be auto, tcg or kvm, not '$VM_ACCEL'" ;; esac
     local interface
@@ -250,6 +251,13 @@ boot_vm() {
     QEMU_STATUS=0
     wait "$QEMU_PID" || QEMU_STATUS=$?
     QEMU_PID=
+    # A QEMU that failed before opening its FIFOs leaves the readers waiting in open(): a
+    # momentary writer lets them see the end.
+    local release
+    for fifo in console stdout stderr; do
+        exec {release}<>"$RUN_DIR/$fifo"
+        exec {release}>&-
+    done
     wait "$console_reader" "$stdout_reader" "$stderr_reader" || true
     TOTAL_S=$(seconds "$(elapsed_ms "$start")")
     if [[ -f $RUN_DIR/ready ]]; then
@@ -291,53 +299,46 @@ read_console() {
     done
 }
 
-# Keeps the console log of a failed run where the user can read it, and names it.
+# Keeps the logs of a failed run where the user can read them, and shows QEMU's own messages
+# (the console's lines were shown as they came).
 keep_console_log() {
     cp "$RUN_DIR/console.log" "$VM_CACHE/last-console.log" 2>/dev/null || true
     cp "$RUN_DIR/qemu.log" "$VM_CACHE/last-qemu.log" 2>/dev/null || true
-    say "guest console: $VM_CACHE/last-console.log, QEMU's messages: $VM_CACHE/last-qemu.log"
     if [[ -s $RUN_DIR/qemu.log ]]; then
         say "QEMU said:"
         sed 's/^/vcan-vm:   /' "$RUN_DIR/qemu.log" | tail -n 20 >&2
     fi
-    say "last console lines:"
-    sed 's/^/vcan-vm:   /' "$RUN_DIR/console.log" | tail -n 20 >&2
+    say "logs kept: guest console $VM_CACHE/last-console.log, QEMU $VM_CACHE/last-qemu.log"
 }
 
 # Turns the finished boot into this script's exit status (printed), explaining failures.
 judge_run() {
-    local marker
+    local marker setup_failure
     marker=$(sed -n 's/^scanhil-vm: exit-status \([0-9]*\)$/\1/p' "$RUN_DIR/console.log" | tail -n 1)
-    local setup_failure
     setup_failure=$(sed -n 's/^scanhil-vm: setup failed: //p' "$RUN_DIR/console.log" | tail -n 1)
+    local status=$EXIT_VM_FAILED failure=
     if ((BOOT_TIMED_OUT)); then
-        keep_console_log
-        die_status "$EXIT_TIMEOUT" "the guest was not set up within ${VM_BOOT_TIMEOUT_S} s (SCANHIL_VM_BOOT_TIMEOUT, accelerator $ACCEL_NAME)"
+        failure="the VM did not boot: the guest was not set up within ${VM_BOOT_TIMEOUT_S} s (SCANHIL_VM_BOOT_TIMEOUT, accelerator $ACCEL_NAME)"
     elif [[ $QEMU_STATUS == 124 || $QEMU_STATUS == 137 ]]; then
-        keep_console_log
-        die_status "$EXIT_TIMEOUT" "timed out: the VM was killed after ${VM_TIMEOUT_S} s (SCANHIL_VM_TIMEOUT) while running: ${COMMAND_TEXT}"
+        status=$EXIT_TIMEOUT
+        failure="timed out: the VM was killed after ${VM_TIMEOUT_S} s (SCANHIL_VM_TIMEOUT) while running: $COMMAND_TEXT"
     elif [[ -n $setup_failure ]]; then
-        keep_console_log
-        die_status "$EXIT_VM_FAILED" "the guest could not be set up: $setup_failure"
+        failure="the guest could not be set up: $setup_failure"
+    elif [[ -z $marker && $VM_OUTCOME == ready ]]; then
+        failure="the VM stopped (QEMU exit status $QEMU_STATUS) without reporting the command's exit status: guest crash or kernel panic"
     elif [[ -z $marker ]]; then
-        keep_console_log
-        if [[ $VM_OUTCOME == ready ]]; then
-            die_status "$EXIT_VM_FAILED" "the VM stopped (QEMU exit status $QEMU_STATUS) without reporting the command's exit status: guest crash or kernel panic"
-        else
-            die_status "$EXIT_VM_FAILED" "the VM did not boot (QEMU exit status $QEMU_STATUS)"
-        fi
+        failure="the VM did not boot (QEMU exit status $QEMU_STATUS)"
     elif ((QEMU_STATUS != (((marker << 1) | 1) & 255))); then
-        keep_console_log
-        die_status "$EXIT_VM_FAILED" "the guest reported exit status $marker but QEMU exited $QEMU_STATUS, not $((((marker << 1) | 1) & 255)) (isa-debug-exit): the status is not trustworthy"
+        failure="the guest reported exit status $marker but QEMU exited $QEMU_STATUS, not $((((marker << 1) | 1) & 255)) (isa-debug-exit): the status is not trustworthy"
     fi
-    verbose "'$COMMAND_TEXT' exited $marker (guest ready after ${READY_AFTER_S} s, VM ran ${TOTAL_S} s, $ACCEL_NAME)"
-    echo "$marker"
-}
-
-# Like die, but with exit status $1; used in judge_run, whose output is the status.
-die_status() {
-    printf 'vcan-vm: VM FAILED: %s\n' "$2" >&2
-    echo "$1"
+    if [[ -n $failure ]]; then
+        keep_console_log
+        printf 'vcan-vm: VM FAILED: %s\n' "$failure" >&2
+        echo "$status"
+    else
+        verbose "'$COMMAND_TEXT' exited $marker (guest ready after $READY_AFTER_S s, VM ran $TOTAL_S s, $ACCEL_NAME)"
+        echo "$marker"
+    fi
 }
 
 cleanup() {

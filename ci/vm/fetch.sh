@@ -55,13 +55,12 @@ refresh_apt_lists() {
 fetch_debs() {
     local debs_dir=$VM_CACHE/debs
     mkdir -p "$debs_dir"
-    local package
-    for package in "$@"; do
-        ensure_apt_knows "$package"
-    done
     local uris
-    uris=$(apt-get download --print-uris "$@" 2>&1) ||
-        die "apt-get download --print-uris $* failed: $uris"
+    uris=$(apt-get download --print-uris "$@" 2>&1) || {
+        refresh_apt_lists "apt cannot name the files of $*"
+        uris=$(apt-get download --print-uris "$@" 2>&1) ||
+            die "apt-get download --print-uris $* failed: $uris"
+    }
     local files=() missing=() file
     while read -r _url file _size _hash; do
         [[ -n $file ]] || continue
