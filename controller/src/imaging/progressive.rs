@@ -45,8 +45,9 @@ pub struct HeightFieldScene<F> {
     pub range_mm: (f64, f64),
 }
 
-/// The march step along the beam when looking for the surface, mm.
-const MARCH_STEP_MM: f64 = 0.02;
+/// The march step along the beam when looking for the surface, mm (then bisection); a
+/// surface part thinner than this along the beam can be missed.
+const MARCH_STEP_MM: f64 = 0.25;
 
 impl<F: Fn(f64, f64) -> f64> ScanScene for HeightFieldScene<F> {
     fn z_meas_mm(&self, d_alpha_rad: f64, d_beta_rad: f64) -> Option<f64> {

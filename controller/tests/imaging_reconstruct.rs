@@ -1,0 +1,251 @@
+//! Reconstruction against the geometry's forward model, recordings, the whole pipeline and
+//! the `scanhil reconstruct` command.
+
+mod imaging_support;
+
+use imaging_support::{BASE_Z_MM, FULL_RANGE_RAD, STUD_HEIGHT_MM, lissajous, raster, stud_scene};
+use scanhil_controller::imaging::feature::FeatureParams;
+use scanhil_controller::imaging::pipeline::{ImagingOptions, ImagingReport, image_samples};
+use scanhil_controller::imaging::ply::read_ply_file;
+use scanhil_controller::imaging::progressive::simulate_samples;
+use scanhil_controller::imaging::reconstruct::{DEFAULT_MODEL, ScanSample, reconstruct};
+use scanhil_controller::imaging::recording::{parse_recording, write_recording_csv};
+use scanhil_geometry::{GeometryModel, Scanner};
+use scanhil_protocol::ild::MeasuringRange;
+
+/// Samples of a flat plane at z = -130 mm seen through `model`'s beam.
+fn plane_samples(model: GeometryModel) -> Vec<ScanSample> {
+    let scanner = Scanner::paper(model);
+    let mut out = Vec::new();
+    for i in -5..=5 {
+        for j in -5..=5 {
+            let (a, b) = (
+                i as f64 * FULL_RANGE_RAD / 5.0,
+                j as f64 * FULL_RANGE_RAD / 5.0,
+            );
+            let ray = scanner.beam(a, b);
+            let t = (BASE_Z_MM - ray.origin_mm.z) / ray.direction.z;
+            out.push(ScanSample {
+                t_s: out.len() as f64 * 5e-5,
+                d_alpha_rad: a,
+                d_beta_rad: b,
+                z_meas_mm: Some(ray.z_meas_at(t)),
+            });
+        }
+    }
+    out
+}
+
+#[test]
+fn reconstruction_inverts_the_forward_model_for_both_models() {
+    for model in GeometryModel::ALL {
+        let samples = plane_samples(model);
+        let r = reconstruct(&samples, &Scanner::paper(model));
+        assert_eq!(r.cloud.model, model);
+        assert_eq!(r.cloud.points.len(), samples.len());
+        for (p, s) in r.cloud.points.iter().zip(&samples) {
+            assert!((p.z_mm - BASE_Z_MM).abs() < 1e-9, "{model}: {p:?}");
+            assert_eq!(
+                (p.t_s, p.d_alpha_rad, p.d_beta_rad),
+                (s.t_s, s.d_alpha_rad, s.d_beta_rad)
+            );
+        }
+    }
+}
+
+#[test]
+fn the_paper_model_on_exact_data_errs_by_at_most_a_tenth_of_a_mm() {
+    let samples = plane_samples(GeometryModel::ExactReflection);
+    let r = reconstruct(&samples, &Scanner::paper(GeometryModel::SmallAngle));
+    assert_eq!(r.cloud.model, DEFAULT_MODEL);
+    let worst = r
+        .cloud
+        .points
+        .iter()
+        .map(|p| (p.z_mm - BASE_Z_MM).abs())
+        .fold(0.0, f64::max);
+    assert!(worst > 1e-4 && worst < 0.1, "{worst}");
+}
+
+#[test]
+fn missing_and_non_finite_samples_become_no_point() {
+    let mut samples = plane_samples(GeometryModel::SmallAngle);
+    samples[3].z_meas_mm = None;
+    samples[4].d_beta_rad = f64::NAN;
+    let r = reconstruct(&samples, &Scanner::paper(GeometryModel::SmallAngle));
+    assert_eq!((r.missing_samples, r.non_finite_samples), (1, 1));
+    assert_eq!(r.cloud.points.len(), samples.len() - 2);
+}
+
+#[test]
+fn recordings_parse_as_csv_and_json_lines() {
+    let range = MeasuringRange::ILD2300_100;
+    let csv =
+        "# a comment\nt_s, d_alpha_rad,d_beta_rad,z_meas_mm\n0.0,0.001,-0.002,140.5\n5e-5,0,0,\n";
+    let r = parse_recording(csv, "rec.csv", &range).unwrap();
+    assert_eq!(r.samples.len(), 2);
+    assert_eq!(r.samples[0].z_meas_mm, Some(140.5));
+    assert_eq!(r.samples[1].z_meas_mm, None);
+    assert_eq!(r.missing_by_reason["empty"], 1);
+
+    let raw = range.mm_to_digital(140.0).unwrap();
+    let jsonl = format!(
+        "{{\"t_s\":0,\"d_alpha_rad\":0,\"d_beta_rad\":0,\"ild_raw\":{raw}}}\n\
+         {{\"t_s\":1e-4,\"d_alpha_rad\":0,\"d_beta_rad\":0,\"ild_raw\":262076,\"extra\":true}}\n"
+    );
+    let r = parse_recording(&jsonl, "rec.jsonl", &range).unwrap();
+    assert!((r.samples[0].z_meas_mm.unwrap() - 140.0).abs() <= range.mm_per_digit());
+    assert_eq!(r.samples[1].z_meas_mm, None);
+    assert_eq!(r.missing_by_reason["no_peak"], 1);
+
+    // Round trip through the CSV writer.
+    let samples = plane_samples(GeometryModel::SmallAngle);
+    let mut text = Vec::new();
+    write_recording_csv(&mut text, &samples).unwrap();
+    let back = parse_recording(std::str::from_utf8(&text).unwrap(), "x", &range).unwrap();
+    assert_eq!(back.samples, samples);
+}
+
+#[test]
+fn bad_recordings_name_file_line_and_field() {
+    let range = MeasuringRange::ILD2300_100;
+    let cases = [
+        (
+            "t_s,d_alpha_rad,z_meas_mm\n",
+            "rec.csv:1: header: no 'd_beta_rad' column",
+        ),
+        (
+            "t_s,d_alpha_rad,d_beta_rad,z_meas_mm,ild_raw\n",
+            "both 'z_meas_mm' and 'ild_raw'",
+        ),
+        (
+            "t_s,d_alpha_rad,d_beta_rad,z_meas_mm\n0,0,x,1\n",
+            "rec.csv:2: d_beta_rad: 'x' is not a number",
+        ),
+        (
+            "t_s,d_alpha_rad,d_beta_rad,z_meas_mm\n0,0,0\n",
+            "rec.csv:2: line: 3 values for 4 columns",
+        ),
+        (
+            "t_s,d_alpha_rad,d_beta_rad,ild_raw\n0,0,0,1.5\n",
+            "rec.csv:2: ild_raw: 1.5 is not an unsigned integer",
+        ),
+        (
+            "{\"t_s\":0,\"d_alpha_rad\":0,\"z_meas_mm\":1}\n",
+            "rec.csv:1: d_beta_rad: missing",
+        ),
+        ("{\"t_s\":0}\n[1]\n", "rec.csv:1: line: neither"),
+    ];
+    for (text, needle) in cases {
+        let err = parse_recording(text, "rec.csv", &range)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(needle), "{err} (wanted {needle})");
+    }
+}
+
+#[test]
+fn the_pipeline_measures_the_simulated_stud_from_both_trajectories() {
+    for (name, angles) in [
+        ("lissajous", lissajous as fn(f64) -> (f64, f64)),
+        ("raster", raster),
+    ] {
+        let samples = simulate_samples(
+            angles,
+            &stud_scene(GeometryModel::SmallAngle),
+            10_000.0,
+            1.0,
+        );
+        let options = ImagingOptions {
+            subtract_plane: true,
+            feature: Some(FeatureParams::default()),
+            ..ImagingOptions::default()
+        };
+        let imaging = image_samples(&samples, &options).unwrap();
+        let f = imaging.feature.unwrap();
+        // Ideal data: the top is flat and exact; the plane picks up the few samples that hit
+        // the stud's wall less than the inlier threshold above the base, a sub-micrometre
+        // bias.
+        assert!((f.height_mm - STUD_HEIGHT_MM).abs() < 1e-3, "{name}: {f:?}");
+        assert!(f.std_mm < 1e-4 && f.points > 100, "{name}: {f:?}");
+        assert!(f.plane.plane.tilt_rad() < 1e-4);
+        assert!(imaging.map.coverage_fraction() > 0.1, "{name}");
+    }
+}
+
+#[test]
+fn scanhil_reconstruct_writes_ply_png_csv_and_report() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("rec.csv");
+    let samples = simulate_samples(
+        lissajous,
+        &stud_scene(GeometryModel::SmallAngle),
+        5_000.0,
+        1.0,
+    );
+    write_recording_csv(std::fs::File::create(&input).unwrap(), &samples).unwrap();
+    let out = dir.path().join("out");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_scanhil"))
+        .args([
+            "reconstruct",
+            input.to_str().unwrap(),
+            "--out-dir",
+            out.to_str().unwrap(),
+        ])
+        .args([
+            "--feature-height",
+            "--subtract-plane",
+            "--fill",
+            "nearest",
+            "--pitch-mm",
+            "0.2",
+        ])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    assert!(stdout.contains("feature height 4.66"), "{stdout}");
+    let report: ImagingReport =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report.model, "small_angle");
+    assert_eq!(report.samples, samples.len());
+    assert_eq!(report.map_quantity, "height_above_plane_mm");
+    // At 5 kHz the samples are ~0.5 mm apart along the figure, so a few wall hits pass the
+    // edge margin: a slightly lower mean and a larger spread than at 10 kHz.
+    let f = report.feature.as_ref().unwrap();
+    assert!(
+        (f.height_mm - STUD_HEIGHT_MM).abs() < 0.01 && f.std_mm < 0.05,
+        "{f:?}"
+    );
+    assert!(report.fill.filled_cells > 0);
+    let ply = read_ply_file(&out.join("points.ply"))
+        .unwrap()
+        .to_point_cloud()
+        .unwrap();
+    assert_eq!(ply.points.len(), report.points);
+    assert!(image::open(out.join("height_map.png")).is_ok());
+    let csv = std::fs::read_to_string(out.join("height_map.csv")).unwrap();
+    assert_eq!(csv.lines().count(), report.grid.nx * report.grid.ny + 1);
+
+    // A bad recording: non-zero exit, the file and line named.
+    std::fs::write(&input, "t_s,d_alpha_rad,d_beta_rad,z_meas_mm\n0,0,0,abc\n").unwrap();
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_scanhil"))
+        .args([
+            "reconstruct",
+            input.to_str().unwrap(),
+            "--out-dir",
+            out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains("rec.csv:2: z_meas_mm: 'abc' is not a number"),
+        "{stderr}"
+    );
+}
