@@ -4,10 +4,13 @@
 //! # Layout
 //! - [`can`]: CAN identifiers and frames (classical, remote, FD), validated at construction.
 //! - [`slcan`]: the SLCAN (Lawicel) line protocol: incremental decoder and encoder.
+//! - [`message`]: the CAN message set: ids, typed messages, the signal table (single source
+//!   of the layout).
 //! - [`plant_units`]: the mirror node's device contract: units, scalings, axis rotation.
 //! - [`ild`]: the ILD 2300 sensor's RS422 values and (to come) its byte stream and commands.
 
 pub mod can;
 pub mod ild;
+pub mod message;
 pub mod plant_units;
 pub mod slcan;
