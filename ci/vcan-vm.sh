@@ -155,8 +155,8 @@ write_job() {
     : >"$job/vcan"
     for interface in $VM_VCAN; do printf '%s\0' "$interface" >>"$job/vcan"; done
     local stdout_kind=pipe stderr_kind=pipe term=dumb
-    [[ -t 1 ]] && stdout_kind=tty && term=${TERM:-dumb}
-    [[ -t 2 ]] && stderr_kind=tty
+    [[ -t 1 ]] && stdout_kind='tty' && term=${TERM:-dumb}
+    [[ -t 2 ]] && stderr_kind='tty'
     printf '%s %s\n' "$stdout_kind" "$stderr_kind" >"$job/stdio"
     {
         printf '%s\0' PATH=/usr/local/sbin:/usr/local/bin:/usr/sbin:/usr/bin:/sbin:/bin \
