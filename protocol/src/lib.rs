@@ -7,9 +7,11 @@
 //! - [`message`]: the CAN message set: ids, typed messages, the signal table (single source
 //!   of the layout).
 //! - [`plant_units`]: the mirror node's device contract: units, scalings, axis rotation.
+//! - [`dbc`]: the DBC file rendered from the message table (`protocol/scanhil.dbc`).
 //! - [`ild`]: the ILD 2300 sensor's RS422 values and (to come) its byte stream and commands.
 
 pub mod can;
+pub mod dbc;
 pub mod ild;
 pub mod message;
 pub mod plant_units;
