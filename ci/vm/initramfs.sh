@@ -51,8 +51,9 @@ base_initramfs() {
     local archive=$VM_CACHE/initramfs-$key.cpio
     if [[ ! -f $archive ]]; then
         build_initramfs "$archive" "$bash_path" "$ip_path" "${can_programs[@]}" -- "${libraries[@]}"
-        # Older archives are of no use any more.
-        find "$VM_CACHE" -maxdepth 1 -name 'initramfs-*.cpio' ! -name "${archive##*/}" -delete
+        # Keep the three newest: a concurrent run from another checkout may still use its own.
+        find "$VM_CACHE" -maxdepth 1 -name 'initramfs-*.cpio' -printf '%T@ %p\n' | sort -rn |
+            tail -n +4 | cut -d' ' -f2- | xargs -r rm -f
     fi
     printf '%s\n' "$archive"
 }
