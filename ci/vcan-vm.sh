@@ -22,13 +22,17 @@
 #   SCANHIL_VM_CPUS=2           virtual CPUs;  SCANHIL_VM_MEMORY_MB=512: guest memory
 #   SCANHIL_VM_VCAN="vcan0"     vcan interfaces to create (space-separated)
 #   SCANHIL_VM_SHARE="DIR ..."  more host folders to mount at their paths (the repository always is)
-#   SCANHIL_VM_ENV="NAME ..."   more host variables to pass to COMMAND (see forwarded_environment)
+#   SCANHIL_VM_ENV="NAME ..."   more host variables to pass to COMMAND
 #   SCANHIL_VM_QEMU=PATH        the qemu-system-x86_64 to use (default: the host's, else Debian's)
-#   SCANHIL_VM_VERBOSE=1        show the whole guest console and the steps taken
+#   SCANHIL_VM_VERBOSE=1        also show the QEMU command line, the guest's markers and timings
+# COMMAND sees PATH, HOME=/root, USER=root, SHELL=/bin/bash, TERM (dumb unless stdout is a
+# terminal), SCANHIL_IN_VM=1, the host's RUST_BACKTRACE, RUST_LOG, RUST_TEST_THREADS and other
+# RUST_* test settings, NO_COLOR, TZ, LANG, LC_ALL and SCANHIL_* (not SCANHIL_VM_*) when set.
+# Its stdin is /dev/null; its stdout/stderr are terminals only where the host's are.
 # Also: ci/vcan-vm.sh --prepare (fetch and build only), ci/vcan-vm.sh --help.
-# Under pipefail, no pipeline here may stop reading early (head, grep -q, awk's exit): the
-# writer's SIGPIPE would fail it now and then.
 set -euo pipefail
+# (Under pipefail, no pipeline here may stop reading early (head, grep -q, awk's exit): the
+# writer's SIGPIPE would fail it now and then.)
 shopt -s inherit_errexit
 
 VM_DIR=$(cd "$(dirname "${BASH_SOURCE[0]}")/vm" && pwd -P)

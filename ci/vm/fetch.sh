@@ -53,6 +53,8 @@ refresh_apt_lists() {
 # Downloads the candidate .deb of each package named in "$@" into $VM_CACHE/debs (skipping
 # those already there) and prints the .deb paths, one a line, in argument order.
 fetch_debs() {
+    command -v apt-get >/dev/null 2>&1 && command -v dpkg-deb >/dev/null 2>&1 ||
+        die "fetching $* needs apt-get and dpkg-deb (a Debian host with bookworm sources), or a cache filled elsewhere (SCANHIL_VM_CACHE)"
     local debs_dir=$VM_CACHE/debs
     mkdir -p "$debs_dir"
     local uris
