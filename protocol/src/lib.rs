@@ -8,7 +8,7 @@
 //!   of the layout).
 //! - [`plant_units`]: the mirror node's device contract: units, scalings, axis rotation.
 //! - [`dbc`]: the DBC file rendered from the message table (`protocol/scanhil.dbc`).
-//! - [`ild`]: the ILD 2300 sensor's RS422 values and (to come) its byte stream and commands.
+//! - [`ild`]: the ILD 2300 sensor: RS422 values, the L/M/H byte stream, ASCII commands.
 
 pub mod can;
 pub mod dbc;

@@ -2,7 +2,13 @@
 //!
 //! # Layout
 //! - [`value`]: raw 18-bit values, distances in mm for a measuring range, error codes.
+//! - [`stream`]: the 3-byte L/M/H value stream: encoder and resynchronising decoder.
+//! - [`command`]: the ASCII command subset and its replies, host and device side.
 
+pub mod command;
+pub mod stream;
 pub mod value;
 
+pub use command::{IldCommand, IldCommandError, IldReply, IldReplyParser};
+pub use stream::{IldDecoder, IldStreamError, IldWord, encode_cycle, encode_word};
 pub use value::{IldError, IldValue, MeasuringRange};
