@@ -178,6 +178,28 @@ fn csv_and_png_say_which_cells_are_measured_filled_missing() {
     );
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("map.png");
-    assert_eq!(map.write_png(&path).unwrap(), Some((-130.5, -130.5)));
-    assert!(std::fs::metadata(&path).unwrap().len() > 0);
+    assert_eq!(map.write_png(&path, 3).unwrap(), Some((-130.5, -130.5)));
+    let png = image::open(&path).unwrap().to_rgb8();
+    assert_eq!(png.dimensions(), (6, 3));
+}
+
+#[test]
+fn png_shows_plus_y_up() {
+    let spec = GridSpec::spanning(0.0, 0.0, 0.0, 1.0, 1.0).unwrap();
+    let map = grid_points(
+        [(0.0, 0.0, 0.0), (0.0, 1.0, 1.0)],
+        spec,
+        GridMethod::CellMean,
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("map.png");
+    map.write_png(&path, 1).unwrap();
+    let png = image::open(&path).unwrap().to_rgb8();
+    // The highest value is yellow-ish (high red and green), the lowest dark blue.
+    let top = png.get_pixel(0, 0).0;
+    let bottom = png.get_pixel(0, 1).0;
+    assert!(
+        top[1] > 200 && bottom[1] < 20,
+        "top {top:?} bottom {bottom:?}"
+    );
 }

@@ -210,20 +210,33 @@ impl HeightMap {
         self.heights_mm[i].is_some() && self.samples[i] == 0
     }
 
-    /// Writes the map as a false-colour PNG (+y up, +x right, missing cells magenta) and
-    /// returns the height range the colours span.
-    pub fn write_png(&self, path: &Path) -> Result<Option<(f64, f64)>, ReportError> {
-        let mut top_down = Vec::with_capacity(self.heights_mm.len());
+    /// Writes the map as a false-colour PNG (+y up, +x right, missing cells magenta), each
+    /// cell drawn as a square of `pixels_per_cell` pixels (at least 1), and returns the height
+    /// range the colours span.
+    pub fn write_png(
+        &self,
+        path: &Path,
+        pixels_per_cell: usize,
+    ) -> Result<Option<(f64, f64)>, ReportError> {
+        let k = pixels_per_cell.max(1);
+        let width = self.spec.nx * k;
+        let mut pixels = Vec::with_capacity(self.heights_mm.len() * k * k);
         for iy in (0..self.spec.ny).rev() {
-            let row = self.spec.index(0, iy);
-            top_down.extend_from_slice(&self.heights_mm[row..row + self.spec.nx]);
+            let row = &self.heights_mm[self.spec.index(0, iy)..][..self.spec.nx];
+            let line: Vec<Option<f64>> = row
+                .iter()
+                .flat_map(|&h| std::iter::repeat_n(h, k))
+                .collect();
+            for _ in 0..k {
+                pixels.extend_from_slice(&line);
+            }
         }
         write_height_map_png(
             path,
             &HeightMapImage {
-                width: self.spec.nx,
-                height: self.spec.ny,
-                cells: &top_down,
+                width,
+                height: self.spec.ny * k,
+                cells: &pixels,
             },
         )
     }

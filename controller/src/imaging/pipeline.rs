@@ -191,7 +191,7 @@ pub fn write_outputs(
     std::fs::create_dir_all(dir).map_err(io(dir.to_owned()))?;
     let [ply, png, csv, json] = OUTPUT_FILES.map(|f| dir.join(f));
     write_ply_file(&ply, &imaging.reconstruction.cloud, encoding)?;
-    let map_range_mm = imaging.map.write_png(&png)?;
+    let map_range_mm = imaging.map.write_png(&png, 1)?;
     let file = std::fs::File::create(&csv).map_err(io(csv.clone()))?;
     imaging
         .map
