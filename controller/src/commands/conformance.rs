@@ -1,0 +1,95 @@
+//! `scanhil conformance --fsm LINK [--sensor LINK]`: checks a mirror node and a sensor, real
+//! or emulated, against the loop protocol; prints a pass/fail table, optionally JUnit XML.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
+use scanhil_controller::run::conformance::{junit_xml, run_checks, table};
+use scanhil_controller::run::scenario::{NodeLink, TimingConfig};
+use scanhil_controller::run::{LinkPlan, finish_emulator, open_links};
+
+/// Check a mirror node (and a sensor) against the loop protocol.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The mirror node: `slcan:PATH[@BITRATE]`, `socketcan:IFACE`, or `pty` (start the
+    /// emulator on a pty pair; needs --scene).
+    #[arg(long)]
+    fsm: String,
+    /// The sensor: `ild:PATH[@BAUD]`, `pty` (emulated), or `fsm` (Distance frames on the
+    /// mirror's link).
+    #[arg(long)]
+    sensor: Option<String>,
+    /// The scene an emulated node serves.
+    #[arg(long)]
+    scene: Option<PathBuf>,
+    /// The control rate the device runs at, in Hz.
+    #[arg(long, default_value_t = 20_000.0)]
+    rate_hz: f64,
+    /// Missed answers before a link timeout (also what the device is expected to use).
+    #[arg(long, default_value_t = 50)]
+    watchdog_periods: u32,
+    /// Wall-clock allowance per answer, in seconds.
+    #[arg(long, default_value_t = 0.01)]
+    answer_allowance_s: f64,
+    /// Write the results as JUnit XML here.
+    #[arg(long)]
+    junit: Option<PathBuf>,
+    /// The `scanhil-emulator` binary (default: $SCANHIL_EMULATOR, else next to `scanhil`).
+    #[arg(long)]
+    emulator: Option<PathBuf>,
+}
+
+/// Runs the checks; exit status 0 when all pass, 1 otherwise.
+///
+/// # Errors
+/// Links that do not open; an emulated node without a scene; the JUnit file not writable.
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let fsm = NodeLink::parse(&args.fsm);
+    let sensor = args.sensor.as_deref().map(NodeLink::parse);
+    let emulated = fsm == NodeLink::Pty || sensor == Some(NodeLink::Pty);
+    let scene = match (&args.scene, emulated) {
+        (Some(scene), _) => scene.clone(),
+        (None, true) => anyhow::bail!("an emulated node (`pty`) needs --scene"),
+        (None, false) => PathBuf::new(),
+    };
+    let plan = LinkPlan {
+        fsm,
+        sensor,
+        spawn_emulator: false,
+        emulator: args.emulator,
+        scene,
+        seed: 0,
+        timing: TimingConfig {
+            watchdog_periods: args.watchdog_periods,
+            lockstep_answer_allowance_s: args.answer_allowance_s,
+            ..TimingConfig::default()
+        },
+        period_s: 1.0 / args.rate_hz,
+        duration_s: 0.0,
+    };
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("starting the I/O runtime")?;
+    let results = runtime.block_on(async {
+        let mut links = open_links(&plan).await?;
+        let sensor = plan.sensor.is_some().then_some(&mut links.sensor);
+        let results = run_checks(&mut links.mirror, sensor).await;
+        drop(links.mirror);
+        if let Some(process) = links.emulator {
+            finish_emulator(process, links.ready_lines).await?;
+        }
+        anyhow::Ok(results)
+    })?;
+    println!("{}", table(&results));
+    if let Some(path) = &args.junit {
+        std::fs::write(path, junit_xml(&results))
+            .with_context(|| format!("writing {}", path.display()))?;
+    }
+    Ok(if results.iter().all(|r| r.passed) {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::FAILURE
+    })
+}

@@ -1,0 +1,107 @@
+//! `scanhil scan SCENARIO`: runs a whole scan and writes its output folder.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
+use scanhil_controller::run::scenario::{NodeLink, Scenario, TimingMode};
+use scanhil_controller::run::{ScanEnd, ScanOptions, default_out_dir, run_scan};
+
+/// Exit status of a scan that stopped early (link timeout, node fault, link failure); its
+/// outputs up to that point are written.
+const EXIT_STOPPED: u8 = 3;
+
+/// Run a scan scenario (fixtures/scenarios/*.json) and write its output folder.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The scenario file.
+    scenario: PathBuf,
+    /// The output folder (default: scan-out/<scenario name>).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// The mirror node's link instead of the scenario's: `pty` (emulated), `slcan:PATH[@BITRATE]`
+    /// or `socketcan:IFACE[@BITRATE]`.
+    #[arg(long)]
+    fsm: Option<String>,
+    /// The sensor's link instead of the scenario's: `pty` (emulated), `ild:PATH[@BAUD]`, or
+    /// `fsm` (Distance frames on the mirror's CAN link).
+    #[arg(long)]
+    sensor: Option<String>,
+    /// Lockstep or real time instead of the scenario's.
+    #[arg(long, value_enum)]
+    timing: Option<TimingArg>,
+    /// Scan duration instead of the scenario's, in seconds.
+    #[arg(long)]
+    duration_s: Option<f64>,
+    /// The `scanhil-emulator` binary (default: $SCANHIL_EMULATOR, else next to `scanhil`).
+    #[arg(long)]
+    emulator: Option<PathBuf>,
+}
+
+/// The timing modes on the command line.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+enum TimingArg {
+    Lockstep,
+    Realtime,
+}
+
+/// Runs the scan; prints where the outputs went and the headline figures.
+///
+/// # Errors
+/// A scenario, controller or scene that does not load; a loop that cannot fit its bus; links
+/// that do not open; outputs that cannot be written.
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let scenario = Scenario::load(&args.scenario)?;
+    let out_dir = args.out.unwrap_or_else(|| default_out_dir(&scenario));
+    let options = ScanOptions {
+        out_dir: out_dir.clone(),
+        emulator: args.emulator,
+        fsm: args.fsm.as_deref().map(NodeLink::parse),
+        sensor: args.sensor.as_deref().map(NodeLink::parse),
+        timing: args.timing.map(|t| match t {
+            TimingArg::Lockstep => TimingMode::Lockstep,
+            TimingArg::Realtime => TimingMode::Realtime,
+        }),
+        duration_s: args.duration_s,
+    };
+    let end = run_scan(&scenario, &options)
+        .with_context(|| format!("scan {}", args.scenario.display()))?;
+    let report_path = out_dir.join("report.json");
+    let report: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(&report_path)
+            .with_context(|| format!("reading back {}", report_path.display()))?,
+    )?;
+    println!("{}", summary_text(&report, &out_dir));
+    Ok(match end {
+        ScanEnd::Complete => ExitCode::SUCCESS,
+        ScanEnd::Stopped(why) => {
+            eprintln!("scanhil: scan stopped early: {why}");
+            ExitCode::from(EXIT_STOPPED)
+        }
+    })
+}
+
+fn summary_text(report: &serde_json::Value, out_dir: &std::path::Path) -> String {
+    let tracking = &report["tracking_error"]["second_half"];
+    let feature = &report["feature"];
+    let mut text = format!(
+        "scan {}: {} of {} periods, {} points\n\
+         tracking error (second half, rms): alpha {:.2} urad, beta {:.2} urad\n",
+        report["scenario"]["name"].as_str().unwrap_or("?"),
+        report["periods"]["done"],
+        report["periods"]["planned"],
+        report["samples"]["points"],
+        tracking["alpha"]["rms_urad"].as_f64().unwrap_or(f64::NAN),
+        tracking["beta"]["rms_urad"].as_f64().unwrap_or(f64::NAN),
+    );
+    if let Some(height) = feature["height_mm"].as_f64() {
+        text += &format!(
+            "feature height: {height:.4} mm (std {:.4} mm, {} points)\n",
+            feature["std_mm"].as_f64().unwrap_or(f64::NAN),
+            feature["points"]
+        );
+    } else if let Some(error) = feature["error"].as_str() {
+        text += &format!("feature height: not measured ({error})\n");
+    }
+    text + &format!("outputs in {}", out_dir.display())
+}

@@ -1,0 +1,248 @@
+//! Conformance checks of a mirror node and a sensor node, real or emulated, against the loop
+//! protocol. Each check is independent of the others' verdicts and says what it saw.
+//!
+//! Mirror node (lockstep exchanges over its CAN link):
+//! - `answers_in_time`: every Step is answered by its AngleReading within the allowance.
+//! - `angle_sequence_gapless`: AngleReading sequence counters follow the Step counter.
+//! - `angles_in_range`: angles finite and within the mirror's range (+-1.5 deg, with margin).
+//! - `status_frames`: Status frames arrive with a valid state.
+//! - `over_current_fault`: a coil command beyond any amplifier's limit raises an OverCurrent
+//!   fault frame.
+//! - `survives_malformed_frames`: malformed loop frames (short payloads) and, on SLCAN,
+//!   garbage lines leave the node answering.
+//! - `link_timeout_fault`: silence for the watchdog's periods raises a LinkTimeout fault
+//!   (run last: the node leaves the session).
+//!
+//! Sensor node (ILD stream, while the mirror node is stepped):
+//! - `sensor_values_decode`: the stream decodes with no resynchronisation.
+//! - `sensor_counter_gapless`: measured-value counters without gaps.
+//! - `sensor_values_in_range`: every value a distance or a known error code.
+
+use std::fmt::Write as _;
+use std::time::{Duration, Instant};
+
+use scanhil_protocol::ild::{IldError, IldValue};
+use scanhil_protocol::message::FaultKind;
+use scanhil_protocol::plant_units::{ActuatorPair, FULL_RANGE_DEG};
+
+use super::mirror_link::MirrorLink;
+use super::sensor_link::SensorLink;
+
+/// Exchanges used by the timing and range checks.
+const EXCHANGES: u64 = 2_500;
+/// A coil current no amplifier accepts, A.
+const OVER_CURRENT_A: f64 = 8.0;
+/// Margin on the mirror's range for the range check.
+const RANGE_MARGIN: f64 = 1.2;
+
+/// One check's verdict.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct CheckResult {
+    /// The check's name.
+    pub name: &'static str,
+    /// Which node it checked.
+    pub node: &'static str,
+    /// Passed?
+    pub passed: bool,
+    /// What was seen.
+    pub detail: String,
+    /// How long it took, s.
+    pub time_s: f64,
+}
+
+/// Runs the mirror node's checks and, when given, the sensor's.
+pub async fn run_checks(mirror: &mut MirrorLink, mut sensor: Option<&mut SensorLink>) -> Vec<CheckResult> {
+    let mut results = Vec::new();
+    let mut k = 0u64;
+    // Timing, sequence, range, status (and the sensor stream alongside).
+    let start = Instant::now();
+    let mut late: Option<String> = None;
+    let mut slowest = Duration::ZERO;
+    let mut out_of_range: Option<String> = None;
+    let limit_rad = FULL_RANGE_DEG.to_radians() * RANGE_MARGIN;
+    while k < EXCHANGES {
+        let t0 = Instant::now();
+        let exchange = match sensor.as_deref_mut() {
+            Some(sensor) => tokio::select! {
+                r = mirror.exchange_lockstep(k, ActuatorPair::default()) => r,
+                e = sensor.pump() => Err(e),
+            },
+            None => mirror.exchange_lockstep(k, ActuatorPair::default()).await,
+        };
+        slowest = slowest.max(t0.elapsed());
+        match exchange {
+            Ok(angles) => {
+                let finite = angles.alpha.is_finite() && angles.beta.is_finite();
+                if out_of_range.is_none() && (!finite || angles.alpha.abs() > limit_rad || angles.beta.abs() > limit_rad) {
+                    out_of_range = Some(format!("period {k}: alpha {} rad, beta {} rad", angles.alpha, angles.beta));
+                }
+            }
+            Err(error) => {
+                late = Some(format!("period {k}: {error}"));
+                break;
+            }
+        }
+        k += 1;
+    }
+    let elapsed = start.elapsed().as_secs_f64();
+    results.push(CheckResult {
+        name: "answers_in_time",
+        node: "fsm",
+        passed: late.is_none(),
+        detail: late.unwrap_or_else(|| format!("{k} steps answered, slowest {slowest:?}")),
+        time_s: elapsed,
+    });
+    let counters = mirror.counters();
+    results.push(CheckResult {
+        name: "angle_sequence_gapless",
+        node: "fsm",
+        passed: counters.angle_sequence_gaps == 0 && counters.angle_readings >= k,
+        detail: format!("{} readings, {} out of sequence", counters.angle_readings, counters.angle_sequence_gaps),
+        time_s: 0.0,
+    });
+    results.push(CheckResult {
+        name: "angles_in_range",
+        node: "fsm",
+        passed: out_of_range.is_none() && k > 0,
+        detail: out_of_range.unwrap_or_else(|| format!("all within +-{:.3} mrad", limit_rad * 1e3)),
+        time_s: 0.0,
+    });
+    let statuses = mirror.events().iter().filter(|e| e.status.is_some()).count();
+    results.push(CheckResult {
+        name: "status_frames",
+        node: "fsm",
+        passed: statuses > 0,
+        detail: format!("{statuses} status frames in {k} periods"),
+        time_s: 0.0,
+    });
+    // Over-current fault.
+    let t0 = Instant::now();
+    let faults_before = fault_count(mirror, FaultKind::OverCurrent);
+    let big = ActuatorPair { a: OVER_CURRENT_A, b: -OVER_CURRENT_A };
+    let mut over_current_error = None;
+    for _ in 0..3 {
+        if let Err(error) = mirror.exchange_lockstep(k, big).await {
+            over_current_error = Some(error.to_string());
+            break;
+        }
+        k += 1;
+    }
+    for _ in 0..3 {
+        if mirror.exchange_lockstep(k, ActuatorPair::default()).await.is_ok() {
+            k += 1;
+        }
+    }
+    let raised = fault_count(mirror, FaultKind::OverCurrent) > faults_before;
+    results.push(CheckResult {
+        name: "over_current_fault",
+        node: "fsm",
+        passed: raised && over_current_error.is_none(),
+        detail: over_current_error.unwrap_or_else(|| {
+            if raised { format!("OverCurrent fault frame after a {OVER_CURRENT_A} A command") } else { format!("no OverCurrent fault after a {OVER_CURRENT_A} A command") }
+        }),
+        time_s: t0.elapsed().as_secs_f64(),
+    });
+    // Malformed input.
+    let t0 = Instant::now();
+    let survived = match mirror.send_malformed(k).await {
+        Err(error) => Err(format!("sending malformed input: {error}")),
+        Ok(sent) => match mirror.exchange_lockstep(k, ActuatorPair::default()).await {
+            Ok(_) => {
+                k += 1;
+                Ok(format!("{sent}; still answering"))
+            }
+            Err(error) => Err(format!("{sent}; then: {error}")),
+        },
+    };
+    results.push(CheckResult {
+        name: "survives_malformed_frames",
+        node: "fsm",
+        passed: survived.is_ok(),
+        detail: survived.unwrap_or_else(|e| e),
+        time_s: t0.elapsed().as_secs_f64(),
+    });
+    // Sensor stream.
+    if let Some(sensor) = sensor {
+        let _ = sensor.drain(Duration::from_millis(100)).await;
+        results.extend(sensor_checks(sensor));
+    }
+    // Link timeout (last).
+    let t0 = Instant::now();
+    let timeout = mirror.await_link_timeout_fault().await;
+    results.push(CheckResult {
+        name: "link_timeout_fault",
+        node: "fsm",
+        passed: timeout.is_ok(),
+        detail: timeout.unwrap_or_else(|e| e.to_string()),
+        time_s: t0.elapsed().as_secs_f64(),
+    });
+    results
+}
+
+fn fault_count(mirror: &MirrorLink, kind: FaultKind) -> usize {
+    mirror.events().iter().filter(|e| e.fault == Some(kind)).count()
+}
+
+fn sensor_checks(sensor: &SensorLink) -> Vec<CheckResult> {
+    let (samples, counters) = sensor.snapshot();
+    let bad = samples.iter().find(|s| matches!(s.value, IldValue::Error(IldError::Unknown(_))));
+    vec![
+        CheckResult {
+            name: "sensor_values_decode",
+            node: "sensor",
+            passed: counters.samples > 0 && counters.resync_bytes == 0,
+            detail: format!("{} bytes, {} samples, {} bytes skipped", counters.bytes, counters.samples, counters.resync_bytes),
+            time_s: 0.0,
+        },
+        CheckResult {
+            name: "sensor_counter_gapless",
+            node: "sensor",
+            passed: counters.samples > 0 && counters.counter_gaps == 0,
+            detail: format!("{} counter values missing", counters.counter_gaps),
+            time_s: 0.0,
+        },
+        CheckResult {
+            name: "sensor_values_in_range",
+            node: "sensor",
+            passed: bad.is_none() && counters.samples > 0,
+            detail: bad.map_or_else(|| "every value a distance or a known error code".to_owned(), |s| format!("unknown error code {}", s.value.raw())),
+            time_s: 0.0,
+        },
+    ]
+}
+
+/// The pass/fail table.
+#[must_use]
+pub fn table(results: &[CheckResult]) -> String {
+    let mut text = format!("{:<6} {:<28} {:<6} detail\n", "node", "check", "result");
+    for r in results {
+        let _ = writeln!(text, "{:<6} {:<28} {:<6} {}", r.node, r.name, if r.passed { "PASS" } else { "FAIL" }, r.detail);
+    }
+    let failed = results.iter().filter(|r| !r.passed).count();
+    let _ = write!(text, "{} checks, {} passed, {failed} failed", results.len(), results.len() - failed);
+    text
+}
+
+/// The results as JUnit XML (one test suite, one test case per check).
+#[must_use]
+pub fn junit_xml(results: &[CheckResult]) -> String {
+    let failures = results.iter().filter(|r| !r.passed).count();
+    let total: f64 = results.iter().map(|r| r.time_s).sum();
+    let mut xml = format!(
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites>\n  <testsuite name=\"scanhil-conformance\" tests=\"{}\" failures=\"{failures}\" errors=\"0\" time=\"{total:.6}\">\n",
+        results.len()
+    );
+    for r in results {
+        let _ = write!(xml, "    <testcase classname=\"{}\" name=\"{}\" time=\"{:.6}\"", r.node, r.name, r.time_s);
+        if r.passed {
+            let _ = writeln!(xml, "><system-out>{}</system-out></testcase>", escape(&r.detail));
+        } else {
+            let _ = writeln!(xml, "><failure message=\"{}\"/></testcase>", escape(&r.detail));
+        }
+    }
+    xml + "  </testsuite>\n</testsuites>\n"
+}
+
+fn escape(text: &str) -> String {
+    text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+}

@@ -1,0 +1,379 @@
+//! The loop runner behind `scanhil scan`: loads a scenario, opens the links (by default a pty
+//! pair per node with `scanhil-emulator serve` on the other end), runs the loop in lockstep or
+//! in real time, pairs distances with angles by the sensor's time, and writes the output
+//! folder.
+//!
+//! # Layout
+//! - [`scenario`]: the scenario file format and its loading.
+//! - [`emulator_process`]: locating and starting `scanhil-emulator serve`.
+//! - [`can_host`]: the host end of a CAN link (SLCAN or SocketCAN) with its candump recording.
+//! - [`mirror_link`]: the mirror node seen from the controller: exchanges, status, faults,
+//!   watchdog.
+//! - [`sensor_link`]: the ILD stream seen from the controller, with its raw recording.
+//! - [`bus_load`]: refusing a loop that cannot fit on a link's bit rate.
+//! - [`lockstep`], [`realtime`]: the two loops.
+//! - [`pairing`]: distances with angles by the sensor's own time.
+//! - [`tracking`]: reference against measured angles.
+//! - [`output`]: report.json, PLY, height map, plots.
+//! - [`progress`]: the progress bar (terminal only).
+//! - [`truth`]: the scene's true surface, to score a reconstruction against.
+//! - [`conformance`]: checks of a mirror node and a sensor against the loop protocol.
+//! - [`plant_link`]: [`crate::link::PlantLink`] over a real mirror link, for `scanhil identify`.
+
+pub mod bus_load;
+pub mod can_host;
+pub mod conformance;
+pub mod emulator_process;
+pub mod lockstep;
+pub mod mirror_link;
+pub mod output;
+pub mod pairing;
+pub mod plant_link;
+pub mod progress;
+pub mod realtime;
+pub mod scenario;
+pub mod sensor_link;
+pub mod tracking;
+pub mod truth;
+
+use std::io::BufRead;
+use std::path::{Path, PathBuf};
+use std::sync::mpsc;
+use std::time::Duration;
+
+use anyhow::{Context, bail};
+use scanhil_emulator::scene::Scene;
+use scanhil_protocol::link::{LinkUri, PtyPair};
+
+use crate::settings::ControllerSettings;
+use can_host::HostCanPort;
+use emulator_process::{EmulatorProcess, locate_emulator};
+use mirror_link::MirrorLink;
+use pairing::SensorClock;
+use scenario::{NodeLink, Scenario, TimingMode};
+use sensor_link::SensorLink;
+
+/// How long the emulator gets to finish after the controller closed its links (on a bus
+/// link it sees no hang-up, and is stopped after this).
+const EMULATOR_GRACE: Duration = Duration::from_secs(2);
+
+/// What `scanhil scan` was asked besides the scenario.
+#[derive(Debug, Clone, Default)]
+pub struct ScanOptions {
+    /// The output folder.
+    pub out_dir: PathBuf,
+    /// The emulator binary, if not found the usual way.
+    pub emulator: Option<PathBuf>,
+    /// Overrides the scenario's mirror link.
+    pub fsm: Option<NodeLink>,
+    /// Overrides the scenario's sensor link.
+    pub sensor: Option<NodeLink>,
+    /// Overrides the scenario's timing mode.
+    pub timing: Option<TimingMode>,
+    /// Overrides the scenario's duration, s.
+    pub duration_s: Option<f64>,
+}
+
+/// How the scan ended, for the exit status.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ScanEnd {
+    /// Every period ran.
+    Complete,
+    /// The loop stopped early (link timeout, node fault, link failure); the message says why.
+    Stopped(String),
+}
+
+/// Runs a scenario and writes its output folder; returns how it ended.
+///
+/// # Errors
+/// Anything that keeps the run from starting (bad files, an unfit bus load, links that do
+/// not open, no emulator binary) or from writing its outputs.
+pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<ScanEnd> {
+    let mut scenario = scenario.clone();
+    if let Some(fsm) = &options.fsm {
+        scenario.links.fsm = fsm.clone();
+    }
+    if let Some(sensor) = &options.sensor {
+        scenario.links.sensor = sensor.clone();
+    }
+    if let Some(mode) = options.timing {
+        scenario.timing.mode = mode;
+    }
+    if let Some(duration_s) = options.duration_s {
+        scenario.duration_s = duration_s;
+    }
+    let settings = ControllerSettings::load(&scenario.controller)?;
+    let mut controller = settings.build()?;
+    let mut scene = Scene::load(&scenario.scene)?;
+    scene.seed = scenario.seed;
+    let period_s = controller.period_s();
+    if (scene.period_s() - period_s).abs() > 1e-12 * period_s {
+        bail!(
+            "{}: the controller runs at {:.1} Hz but scene {} at {:.1} Hz",
+            scenario.path.display(),
+            1.0 / period_s,
+            scenario.scene.display(),
+            1.0 / scene.period_s()
+        );
+    }
+    let periods = (scenario.duration_s / period_s).round() as u64;
+    bus_load::check(&scenario, &scene, period_s)?;
+    std::fs::create_dir_all(&options.out_dir)
+        .with_context(|| format!("creating {}", options.out_dir.display()))?;
+
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("starting the I/O runtime")?;
+    let out_dir = options.out_dir.clone();
+    let outcome = runtime.block_on(async {
+        let plan = LinkPlan {
+            fsm: scenario.links.fsm.clone(),
+            sensor: scene
+                .has(scanhil_emulator::scene::Part::Sensor)
+                .then(|| scenario.links.sensor.clone()),
+            spawn_emulator: scenario.links.spawn_emulator,
+            emulator: options.emulator.clone(),
+            scene: scenario.scene.clone(),
+            seed: scenario.seed,
+            timing: scenario.timing,
+            period_s,
+            duration_s: scenario.duration_s,
+        };
+        let mut links = open_links(&plan).await?;
+        links
+            .mirror
+            .port_mut()
+            .record_to(&out_dir.join(output::FSM_LOG), &links.fsm_iface)
+            .context("creating the mirror link's recording")?;
+        links
+            .sensor
+            .record_to(&out_dir.join(output::SENSOR_CAPTURE))
+            .context("creating the sensor's recording")?;
+        let progress = progress::Progress::new(periods, &scenario.name);
+        let record = match scenario.timing.mode {
+            TimingMode::Lockstep => {
+                lockstep::run(
+                    &mut links.mirror,
+                    &mut links.sensor,
+                    &mut controller,
+                    &scenario.trajectory,
+                    periods,
+                    &progress,
+                )
+                .await
+            }
+            TimingMode::Realtime => {
+                realtime::run(
+                    &mut links.mirror,
+                    &mut links.sensor,
+                    &mut controller,
+                    &scenario.trajectory,
+                    periods,
+                    &progress,
+                )
+                .await
+            }
+        };
+        progress.finish();
+        let can_distances = links.mirror.take_distances();
+        let mirror_counters = links.mirror.counters();
+        let node_events = links.mirror.events().to_vec();
+        // Closing the mirror link ends the emulator's run; the sensor stream then drains.
+        drop(links.mirror);
+        links
+            .sensor
+            .drain(Duration::from_millis(200))
+            .await
+            .context("draining the sensor link")?;
+        let emulator_summary = match links.emulator {
+            Some(process) => Some(finish_emulator(process, links.ready_lines).await?),
+            None => None,
+        };
+        anyhow::Ok(output::RunData {
+            record,
+            can_distances,
+            mirror_counters,
+            node_events,
+            sensor: links.sensor.into_samples(),
+            emulator_summary,
+        })
+    })?;
+    let clock = sensor_clock(&scene, outcome.emulator_summary.as_ref());
+    output::write(&scenario, &scene, &outcome, clock, &options.out_dir)
+}
+
+/// What to connect to: the nodes' links, and how to start the emulator for emulated nodes.
+#[derive(Debug, Clone)]
+pub struct LinkPlan {
+    /// The mirror node's link.
+    pub fsm: NodeLink,
+    /// The sensor's link; `None` when the run needs no sensor.
+    pub sensor: Option<NodeLink>,
+    /// Start `scanhil-emulator serve` (for pty links always; for URIs when asked).
+    pub spawn_emulator: bool,
+    /// The emulator binary, if not found the usual way.
+    pub emulator: Option<PathBuf>,
+    /// The scene the emulator serves.
+    pub scene: PathBuf,
+    /// The plant's seed.
+    pub seed: u64,
+    /// Timing and watchdog.
+    pub timing: scenario::TimingConfig,
+    /// The control period, s.
+    pub period_s: f64,
+    /// Real time: how long the emulator runs, s.
+    pub duration_s: f64,
+}
+
+/// The open links and the emulator process behind them.
+#[derive(Debug)]
+pub struct OpenLinks {
+    /// The mirror node.
+    pub mirror: MirrorLink,
+    /// The sensor.
+    pub sensor: SensorLink,
+    /// The interface name written into the mirror's candump log.
+    pub fsm_iface: String,
+    /// The emulator, when started here.
+    pub emulator: Option<EmulatorProcess>,
+    /// The emulator's stdout lines.
+    pub ready_lines: Option<mpsc::Receiver<String>>,
+}
+
+/// Opens the links of `plan` and starts the emulator when the plan says so.
+///
+/// # Errors
+/// Links that do not open, an emulator that cannot be found or started.
+pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
+    let timing = plan.timing;
+    let mut emulator_args: Vec<String> = vec![
+        "serve".into(),
+        "--scene".into(),
+        plan.scene.display().to_string(),
+        "--seed".into(),
+        plan.seed.to_string(),
+        "--watchdog-periods".into(),
+        timing.watchdog_periods.to_string(),
+        "--lockstep-answer-allowance-s".into(),
+        timing.lockstep_answer_allowance_s.to_string(),
+        "--timing".into(),
+        match timing.mode {
+            TimingMode::Lockstep => "lockstep".into(),
+            TimingMode::Realtime => "realtime".into(),
+        },
+    ];
+    if timing.mode == TimingMode::Realtime {
+        emulator_args.push("--duration-s".into());
+        emulator_args.push(plan.duration_s.to_string());
+    }
+    let allowance = match timing.mode {
+        TimingMode::Lockstep => Duration::from_secs_f64(timing.lockstep_answer_allowance_s),
+        TimingMode::Realtime => Duration::from_secs_f64(plan.period_s),
+    };
+    let mut spawn = plan.spawn_emulator;
+    let (mirror_port, fsm_iface) = match &plan.fsm {
+        NodeLink::Pty => {
+            spawn = true;
+            let pair = PtyPair::open()?;
+            let slave = format!("slcan:{}", pair.slave_path().display());
+            emulator_args.extend(["--fsm".into(), slave.clone()]);
+            (HostCanPort::on_pty(pair, &slave).await?, "slcan0".to_owned())
+        }
+        NodeLink::Uri(uri) => {
+            let parsed: LinkUri = uri.parse()?;
+            emulator_args.extend(["--fsm".into(), uri.clone()]);
+            let iface = match &parsed {
+                LinkUri::SocketCan { iface, .. } => iface.clone(),
+                _ => "slcan0".to_owned(),
+            };
+            (HostCanPort::open(&parsed).await?, iface)
+        }
+    };
+    let sensor = match &plan.sensor {
+        None => SensorLink::Elsewhere,
+        Some(NodeLink::Pty) => {
+            spawn = true;
+            let pair = PtyPair::open()?;
+            let slave = format!("ild:{}", pair.slave_path().display());
+            emulator_args.extend(["--sensor".into(), slave.clone()]);
+            SensorLink::on_pty(pair, &slave)?
+        }
+        Some(NodeLink::Uri(uri)) if uri == "fsm" => {
+            emulator_args.extend(["--sensor".into(), "fsm".into()]);
+            SensorLink::Elsewhere
+        }
+        Some(NodeLink::Uri(uri)) => {
+            emulator_args.extend(["--sensor".into(), uri.clone()]);
+            SensorLink::open(&uri.parse()?)?
+        }
+    };
+    let (emulator, ready_lines) = if spawn {
+        let binary = locate_emulator(plan.emulator.as_deref())?;
+        let mut process = EmulatorProcess::start(&binary, &emulator_args)?;
+        let lines = process.stdout_lines();
+        (Some(process), Some(lines))
+    } else {
+        (None, None)
+    };
+    let mirror = MirrorLink::new(mirror_port, plan.period_s, allowance, timing.watchdog_periods);
+    Ok(OpenLinks {
+        mirror,
+        sensor,
+        fsm_iface,
+        emulator,
+        ready_lines,
+    })
+}
+
+/// Waits for the emulator to exit (killing it after a grace period) and returns its exit
+/// status and summary line as JSON.
+///
+/// # Errors
+/// The OS error of waiting.
+pub async fn finish_emulator(
+    process: EmulatorProcess,
+    lines: Option<mpsc::Receiver<String>>,
+) -> anyhow::Result<serde_json::Value> {
+    let status = tokio::task::spawn_blocking(move || process.finish(EMULATOR_GRACE))
+        .await
+        .context("waiting for the emulator")??;
+    let summary = lines
+        .into_iter()
+        .flat_map(|rx| rx.into_iter())
+        .filter_map(|line| serde_json::from_str::<serde_json::Value>(&line).ok())
+        .find(|value| value["event"] == "summary")
+        .unwrap_or(serde_json::Value::Null);
+    let exit_status = status.and_then(|s| s.code());
+    Ok(serde_json::json!({ "exit_status": exit_status, "killed": status.is_none(), "summary": summary }))
+}
+
+/// The sensor's clock: declared by the emulator's summary when it served the sensor, else
+/// the scene's measuring rate with counter 0 at loop time 0.
+fn sensor_clock(scene: &Scene, emulator: Option<&serde_json::Value>) -> SensorClock {
+    let rate = scene.sensor.clone().unwrap_or_default().measuring_rate_hz;
+    let declared = emulator.and_then(|e| e["summary"]["sensor"]["counter_zero_s"].as_f64());
+    SensorClock {
+        measuring_rate_hz: rate,
+        counter_zero_s: declared.unwrap_or(0.0),
+    }
+}
+
+/// Reads a child's stdout lines on a thread.
+pub(crate) fn spawn_line_reader(pipe: impl std::io::Read + Send + 'static) -> mpsc::Receiver<String> {
+    let (tx, rx) = mpsc::channel();
+    std::thread::spawn(move || {
+        for line in std::io::BufReader::new(pipe).lines().map_while(Result::ok) {
+            if tx.send(line).is_err() {
+                break;
+            }
+        }
+    });
+    rx
+}
+
+/// The output folder a scenario writes to by default: `scan-out/<scenario name>`.
+#[must_use]
+pub fn default_out_dir(scenario: &Scenario) -> PathBuf {
+    Path::new("scan-out").join(&scenario.name)
+}

@@ -1,0 +1,103 @@
+//! [`PlantLink`] over a real mirror link, so `scanhil identify --fsm LINK` measures whatever
+//! is on the other end: the emulator (started here on a pty pair, `--fsm pty`), or a real
+//! mirror node (`--fsm slcan:/dev/ttyACM0`, `--fsm socketcan:can0`). Each exchange is one
+//! lockstep period.
+
+use std::path::Path;
+use std::time::Duration;
+
+use anyhow::Context;
+use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
+
+use super::emulator_process::EmulatorProcess;
+use super::mirror_link::MirrorLink;
+use super::scenario::{NodeLink, TimingConfig};
+use super::{LinkPlan, open_links};
+use crate::link::{LinkError, PlantLink};
+
+/// Wall-clock allowance per missed answer.
+const ANSWER_ALLOWANCE: Duration = Duration::from_millis(10);
+/// Missed answers before the link counts as timed out.
+const WATCHDOG_PERIODS: u32 = 200;
+
+/// A mirror node on a real link, driven in lockstep.
+#[derive(Debug)]
+pub struct LinkedPlant {
+    runtime: tokio::runtime::Runtime,
+    mirror: MirrorLink,
+    period_s: f64,
+    next_period: u64,
+    _emulator: Option<EmulatorProcess>,
+}
+
+impl LinkedPlant {
+    /// Connects to the mirror node on `fsm`. With [`NodeLink::Pty`], starts
+    /// `scanhil-emulator serve --scene SCENE` on a new pty pair (the scene is then required).
+    ///
+    /// # Errors
+    /// A link that does not open, no emulator binary, no scene for an emulated node.
+    pub fn connect(
+        fsm: &NodeLink,
+        scene: Option<&Path>,
+        emulator: Option<&Path>,
+        period_s: f64,
+    ) -> anyhow::Result<LinkedPlant> {
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .context("starting the I/O runtime")?;
+        let scene = match (fsm, scene) {
+            (NodeLink::Pty, None) => anyhow::bail!("--fsm pty emulates the mirror: give --scene"),
+            (_, scene) => scene.map(Path::to_owned).unwrap_or_default(),
+        };
+        let plan = LinkPlan {
+            fsm: fsm.clone(),
+            sensor: None,
+            spawn_emulator: false,
+            emulator: emulator.map(Path::to_owned),
+            scene,
+            seed: 0,
+            timing: TimingConfig {
+                watchdog_periods: WATCHDOG_PERIODS,
+                lockstep_answer_allowance_s: ANSWER_ALLOWANCE.as_secs_f64(),
+                ..TimingConfig::default()
+            },
+            period_s,
+            duration_s: 0.0,
+        };
+        let links = runtime.block_on(open_links(&plan))?;
+        Ok(LinkedPlant {
+            runtime,
+            mirror: links.mirror,
+            period_s,
+            next_period: 0,
+            _emulator: links.emulator,
+        })
+    }
+}
+
+impl PlantLink for LinkedPlant {
+    fn exchange(&mut self, coil_currents_a: ActuatorPair) -> Result<SensingPair, LinkError> {
+        let k = self.next_period;
+        let result = self
+            .runtime
+            .block_on(self.mirror.exchange_lockstep(k, coil_currents_a));
+        match result {
+            Ok(angles) => {
+                self.next_period += 1;
+                Ok(angles)
+            }
+            Err(error) => {
+                let mirror = &mut self.mirror;
+                self.runtime.block_on(mirror.command_zero(k));
+                Err(LinkError {
+                    message: error.to_string(),
+                })
+            }
+        }
+    }
+
+    fn period_s(&self) -> f64 {
+        self.period_s
+    }
+}

@@ -1,0 +1,276 @@
+//! A scenario file (`fixtures/scenarios/*.json`): everything one `scanhil scan` needs: the
+//! scene the emulator serves, the controller settings, the trajectory, the links, the timing
+//! mode, the duration and the seed, and how to image the result.
+//!
+//! Relative paths inside a scenario are resolved against the scenario file's directory.
+
+use std::path::{Path, PathBuf};
+
+use scanhil_geometry::GeometryModel;
+use serde::Deserialize;
+
+use crate::imaging::feature::FeatureParams;
+use crate::trajectory::Trajectory;
+
+/// A loaded, checked scenario with absolute paths.
+#[derive(Debug, Clone)]
+pub struct Scenario {
+    /// Where it was loaded from.
+    pub path: PathBuf,
+    /// Short name (used in reports).
+    pub name: String,
+    /// Free text.
+    pub description: String,
+    /// The scene file the emulator serves (also the ground truth for scoring).
+    pub scene: PathBuf,
+    /// The controller settings file.
+    pub controller: PathBuf,
+    /// The reference the mirror follows.
+    pub trajectory: Trajectory,
+    /// How long to scan, in seconds of (virtual) time.
+    pub duration_s: f64,
+    /// Seed of every random generator in the plant (overrides the scene's seed).
+    pub seed: u64,
+    /// Lockstep or real time, and the watchdog.
+    pub timing: TimingConfig,
+    /// Which links carry the mirror and the sensor.
+    pub links: LinksConfig,
+    /// How the point cloud is gridded and scored.
+    pub imaging: ImagingConfig,
+}
+
+/// How the loop is clocked.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum TimingMode {
+    /// The controller's Step frame advances the emulator by exactly one period (virtual time).
+    #[default]
+    Lockstep,
+    /// The emulator is the clock master on the wall clock; the controller answers each period.
+    Realtime,
+}
+
+/// The `timing` section.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TimingConfig {
+    /// Lockstep (default) or real time.
+    pub mode: TimingMode,
+    /// Missed periods after which either side declares a link timeout.
+    pub watchdog_periods: u32,
+    /// In lockstep, the wall-clock allowance for one answer before a period counts as missed,
+    /// in seconds (a debug build on a busy machine needs far more than one period).
+    pub lockstep_answer_allowance_s: f64,
+}
+
+impl Default for TimingConfig {
+    fn default() -> TimingConfig {
+        TimingConfig {
+            mode: TimingMode::Lockstep,
+            watchdog_periods: 200,
+            lockstep_answer_allowance_s: 0.01,
+        }
+    }
+}
+
+/// Where a node lives.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub enum NodeLink {
+    /// Emulated: `scanhil scan` starts `scanhil-emulator serve` on a fresh pty pair (SLCAN for
+    /// the mirror, the ILD stream for the sensor). Written `"pty"`.
+    Pty,
+    /// A link URI (`socketcan:IFACE`, `slcan:PATH[@BITRATE]`, `ild:PATH[@BAUD]`).
+    Uri(String),
+}
+
+impl<'de> Deserialize<'de> for NodeLink {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<NodeLink, D::Error> {
+        let text = String::deserialize(deserializer)?;
+        Ok(NodeLink::parse(&text))
+    }
+}
+
+impl NodeLink {
+    /// `"pty"` or a URI.
+    #[must_use]
+    pub fn parse(text: &str) -> NodeLink {
+        if text == "pty" {
+            NodeLink::Pty
+        } else {
+            NodeLink::Uri(text.to_owned())
+        }
+    }
+}
+
+/// The `links` section.
+#[derive(Debug, Clone, PartialEq, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LinksConfig {
+    /// The mirror node.
+    pub fsm: NodeLink,
+    /// The sensor node.
+    pub sensor: NodeLink,
+    /// Start `scanhil-emulator serve` for the emulated nodes (true, the default), or use
+    /// devices already on the links (false: real hardware, or an emulator started by hand).
+    pub spawn_emulator: bool,
+}
+
+impl Default for LinksConfig {
+    fn default() -> LinksConfig {
+        LinksConfig {
+            fsm: NodeLink::Pty,
+            sensor: NodeLink::Pty,
+            spawn_emulator: true,
+        }
+    }
+}
+
+/// The `imaging` section.
+#[derive(Debug, Clone, Copy, PartialEq, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ImagingConfig {
+    /// Height map cell size, in mm.
+    pub pitch_mm: f64,
+    /// Which geometry turns angles and distances into points.
+    pub reconstruction: GeometryModel,
+    /// The feature whose height is measured (the Duplo stud), if any.
+    pub feature: Option<FeatureParams>,
+    /// Points of the progressive-imaging curve (reconstruction error against scan time).
+    pub progressive_steps: usize,
+}
+
+impl Default for ImagingConfig {
+    fn default() -> ImagingConfig {
+        ImagingConfig {
+            pitch_mm: 0.1,
+            reconstruction: crate::imaging::reconstruct::DEFAULT_MODEL,
+            feature: None,
+            progressive_steps: 10,
+        }
+    }
+}
+
+/// Why a scenario could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum ScenarioError {
+    /// The file could not be read.
+    #[error("cannot read scenario {path}: {source}")]
+    Io {
+        /// The scenario file.
+        path: PathBuf,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// The JSON did not parse or did not match the format.
+    #[error("{path}:{line}:{column}: {message}")]
+    Parse {
+        /// The scenario file.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What serde said.
+        message: String,
+    },
+    /// A field has a value that cannot run.
+    #[error("{path}: field `{field}`: {reason}")]
+    Invalid {
+        /// The scenario file.
+        path: PathBuf,
+        /// The offending field.
+        field: &'static str,
+        /// Why.
+        reason: String,
+    },
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ScenarioFile {
+    name: String,
+    #[serde(default)]
+    description: String,
+    scene: PathBuf,
+    controller: PathBuf,
+    trajectory: Trajectory,
+    duration_s: f64,
+    #[serde(default)]
+    seed: u64,
+    #[serde(default)]
+    timing: TimingConfig,
+    #[serde(default)]
+    links: LinksConfig,
+    #[serde(default)]
+    imaging: ImagingConfig,
+}
+
+impl Scenario {
+    /// Reads, parses and checks a scenario file.
+    ///
+    /// # Errors
+    /// [`ScenarioError`] naming the file and, for parse errors, the line and column.
+    pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        Scenario::from_json_str(&text, path)
+    }
+
+    /// Parses and checks a scenario; `origin` names it in errors and anchors relative paths.
+    ///
+    /// # Errors
+    /// [`ScenarioError::Parse`] or [`ScenarioError::Invalid`].
+    pub fn from_json_str(text: &str, origin: &Path) -> Result<Scenario, ScenarioError> {
+        let file: ScenarioFile =
+            serde_json::from_str(text).map_err(|err| ScenarioError::Parse {
+                path: origin.to_owned(),
+                line: err.line(),
+                column: err.column(),
+                message: err.to_string(),
+            })?;
+        let invalid = |field: &'static str, reason: String| ScenarioError::Invalid {
+            path: origin.to_owned(),
+            field,
+            reason,
+        };
+        if !(file.duration_s.is_finite() && file.duration_s > 0.0) {
+            return Err(invalid(
+                "duration_s",
+                format!("{} s must be positive and finite", file.duration_s),
+            ));
+        }
+        if file.timing.watchdog_periods == 0 {
+            return Err(invalid("timing.watchdog_periods", "must be at least 1".into()));
+        }
+        let allowance = file.timing.lockstep_answer_allowance_s;
+        if !(allowance.is_finite() && allowance > 0.0) {
+            return Err(invalid(
+                "timing.lockstep_answer_allowance_s",
+                format!("{allowance} s must be positive and finite"),
+            ));
+        }
+        let pitch = file.imaging.pitch_mm;
+        if !(pitch.is_finite() && pitch > 0.0) {
+            return Err(invalid(
+                "imaging.pitch_mm",
+                format!("{pitch} mm must be positive and finite"),
+            ));
+        }
+        let base = origin.parent().unwrap_or(Path::new("."));
+        Ok(Scenario {
+            path: origin.to_owned(),
+            name: file.name,
+            description: file.description,
+            scene: base.join(file.scene),
+            controller: base.join(file.controller),
+            trajectory: file.trajectory,
+            duration_s: file.duration_s,
+            seed: file.seed,
+            timing: file.timing,
+            links: file.links,
+            imaging: file.imaging,
+        })
+    }
+}

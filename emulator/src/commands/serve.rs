@@ -1,0 +1,68 @@
+//! `scanhil-emulator serve`: the emulated mirror node and/or sensor node on real links.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
+
+use scanhil_emulator::serve::{ServeConfig, ServeOutcome, TimingMode};
+
+/// Serve the emulated mirror (`--fsm`) and/or sensor (`--sensor`) on real links.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// The scene to emulate (fixtures/scenes/*.json).
+    #[arg(long)]
+    scene: PathBuf,
+    /// The mirror node's link: `slcan:PATH`, `socketcan:IFACE`, or `slcan:pty` (create a pty
+    /// pair and print its path for an outside client).
+    #[arg(long)]
+    fsm: Option<String>,
+    /// The sensor node's link: `ild:PATH` (the ILD 2300 stream), `ild:pty`, or `fsm` (Distance
+    /// frames on the mirror's CAN link).
+    #[arg(long)]
+    sensor: Option<String>,
+    /// Lockstep (the controller's Step frames advance time) or realtime (this emulator is the
+    /// clock master).
+    #[arg(long, value_enum, default_value_t = TimingMode::Lockstep)]
+    timing: TimingMode,
+    /// Overrides the scene's seed.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Missed periods before the watchdog zeroes the coil currents and reports a link timeout.
+    #[arg(long, default_value_t = 200)]
+    watchdog_periods: u32,
+    /// In lockstep, the wall-clock allowance per missed period, in seconds.
+    #[arg(long, default_value_t = 0.01)]
+    lockstep_answer_allowance_s: f64,
+    /// Real time: stop after this many seconds (default: until the link closes).
+    #[arg(long)]
+    duration_s: Option<f64>,
+    /// Status/heartbeat frames per second (of loop time).
+    #[arg(long, default_value_t = 10.0)]
+    heartbeat_hz: f64,
+}
+
+/// Runs the node(s) until the controller closes the link, the watchdog fires or the duration
+/// ends. Prints a `ready` JSON line (with any pty paths it created) when listening, and a
+/// `summary` JSON line at the end. Exit status 0 after a clean run, 3 after a link timeout.
+///
+/// # Errors
+/// A scene that does not load, a link that does not open, or a plant error.
+pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let config = ServeConfig {
+        scene: args.scene,
+        fsm: args.fsm,
+        sensor: args.sensor,
+        timing: args.timing,
+        seed: args.seed,
+        watchdog_periods: args.watchdog_periods,
+        lockstep_answer_allowance_s: args.lockstep_answer_allowance_s,
+        duration_s: args.duration_s,
+        heartbeat_hz: args.heartbeat_hz,
+    };
+    let outcome = scanhil_emulator::serve::serve(&config).context("serve")?;
+    Ok(match outcome {
+        ServeOutcome::Finished => ExitCode::SUCCESS,
+        ServeOutcome::LinkTimeout => ExitCode::from(3),
+    })
+}

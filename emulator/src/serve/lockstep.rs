@@ -1,0 +1,166 @@
+//! Lockstep: the controller's Step(k) frame advances the plant exactly one period, so time is
+//! virtual and a seed gives the same frames on every transport.
+//!
+//! Per period the controller sends CoilCommand(seq = k) then Step(k); the node answers
+//! AngleReading(k), then fault frames for faults that started, the sensor's samples of that
+//! period, and a Status frame every `1 / heartbeat_hz` seconds of loop time. The watchdog is
+//! armed by the first frame from the controller: when no frame arrives for `watchdog_periods`
+//! wall-clock allowances, the node drops its coil currents to zero, sends a LinkTimeout
+//! fault and a Status(fault), and the run ends.
+
+use std::time::Duration;
+
+use scanhil_protocol::link::{LinkError, Watchdog};
+use scanhil_protocol::can::CanFrame;
+use scanhil_protocol::message::{
+    AngleReading, Fault, FaultKind, Message, MessageError, NodeId, NodeState, Status, U24_MAX,
+};
+
+use super::mirror_node::{MirrorNode, NodeOutput};
+use super::{LoopReport, ServeConfig, ServeLinks, ServeOutcome};
+
+/// Runs the lockstep loop until the controller hangs up or the watchdog fires.
+///
+/// # Errors
+/// A link error other than a hang-up, or a plant error (non-finite command).
+pub async fn run(
+    node: &mut MirrorNode,
+    links: &mut ServeLinks,
+    config: &ServeConfig,
+) -> anyhow::Result<LoopReport> {
+    let allowance = Duration::from_secs_f64(config.lockstep_answer_allowance_s);
+    let mut watchdog: Option<Watchdog> = None;
+    let heartbeat_every = periods_per_heartbeat(node.plant().period_s(), config.heartbeat_hz);
+    loop {
+        let received = match &watchdog {
+            Some(dog) => {
+                let remaining = dog.remaining();
+                tokio::select! {
+                    frame = links.fsm.recv() => Some(frame),
+                    () = tokio::time::sleep(remaining) => None,
+                }
+            }
+            None => Some(links.fsm.recv().await),
+        };
+        let frame = match received {
+            None => {
+                let (fault, detail) = node.on_link_timeout(config.watchdog_periods);
+                let k = node.next_period();
+                links.fsm.send(&fault_frame(fault, detail, k)?).await?;
+                links
+                    .fsm
+                    .send(&status_frame(NodeState::Fault, k, node.plant().period_s())?)
+                    .await?;
+                return Ok(LoopReport {
+                    outcome: ServeOutcome::LinkTimeout,
+                    timing: serde_json::Value::Null,
+                    error: Some(format!(
+                        "link timeout: no frame from the controller for {} periods of {:?}",
+                        config.watchdog_periods, allowance
+                    )),
+                });
+            }
+            Some(Err(LinkError::HangUp { .. })) => {
+                return Ok(LoopReport {
+                    outcome: ServeOutcome::Finished,
+                    timing: serde_json::Value::Null,
+                    error: None,
+                });
+            }
+            Some(Err(err)) => return Err(err.into()),
+            Some(Ok(frame)) => frame,
+        };
+        let message = match Message::decode(&frame) {
+            Ok(message) => message,
+            Err(MessageError::UnknownId(_)) => continue,
+            Err(_) => {
+                node.on_malformed_frame();
+                continue;
+            }
+        };
+        match message {
+            Message::CoilCommand(command) => {
+                watchdog
+                    .get_or_insert_with(|| {
+                        Watchdog::new("controller", allowance, config.watchdog_periods)
+                    })
+                    .feed();
+                node.on_command(command.seq, command.amps());
+            }
+            Message::Step { step } => {
+                watchdog
+                    .get_or_insert_with(|| {
+                        Watchdog::new("controller", allowance, config.watchdog_periods)
+                    })
+                    .feed();
+                let k = node.next_period();
+                node.check_step_counter(step);
+                for output in node.step()? {
+                    match output {
+                        NodeOutput::Angles(step) => {
+                            links.fsm.send(&angle_frame(&step)?).await?;
+                            links.sensor.emit(&step.sensor_samples, &mut links.fsm).await?;
+                        }
+                        NodeOutput::Fault(kind, detail) => {
+                            links.fsm.send(&fault_frame(kind, detail, k)?).await?;
+                        }
+                    }
+                }
+                if k % heartbeat_every == 0 {
+                    let status = status_frame(node.state(), k, node.plant().period_s())?;
+                    links.fsm.send(&status).await?;
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+/// The AngleReading frame of a stepped period (sequence counter = period mod 2^16).
+///
+/// # Errors
+/// [`MessageError`] if the message cannot be encoded (never for the mirror's angles).
+pub fn angle_frame(step: &crate::plant::PlantStep) -> Result<CanFrame, MessageError> {
+    let reading = AngleReading::from_rad(step.period_index as u16, step.measured_angles_rad);
+    Message::AngleReading(reading).encode()
+}
+
+/// The mirror node's fault frame for a fault that started in period `k`.
+///
+/// # Errors
+/// [`MessageError`] if the message cannot be encoded.
+pub fn fault_frame(kind: FaultKind, detail: i32, k: u64) -> Result<CanFrame, MessageError> {
+    Message::Fault(Fault {
+        node: NodeId::Fsm,
+        kind,
+        detail,
+        step: k as u16,
+    })
+    .encode()
+}
+
+/// The mirror node's status frame in period `k` (its node time is the loop time, in us).
+///
+/// # Errors
+/// [`MessageError`] if the message cannot be encoded.
+pub fn status_frame(state: NodeState, k: u64, period_s: f64) -> Result<CanFrame, MessageError> {
+    let node_time_us = (k as f64 * period_s * 1e6).round() as u64;
+    Message::Status(Status {
+        node: NodeId::Fsm,
+        state,
+        step: (k & u64::from(U24_MAX)) as u32,
+        node_time_us: (node_time_us & u64::from(U24_MAX)) as u32,
+    })
+    .encode()
+}
+
+/// Periods between two status frames (at least 1).
+#[must_use]
+pub fn periods_per_heartbeat(period_s: f64, heartbeat_hz: f64) -> u64 {
+    let periods = (1.0 / (heartbeat_hz * period_s)).round();
+    if periods.is_finite() && periods >= 1.0 {
+        periods as u64
+    } else {
+        1
+    }
+}

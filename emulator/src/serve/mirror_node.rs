@@ -1,0 +1,196 @@
+//! The mirror node as a protocol state machine, free of I/O and clocks: coil commands in,
+//! one plant period per step, angle readings, status and faults out. The transport driver
+//! ([`super::driver`]) feeds it decoded messages and sends what it returns; lockstep and real
+//! time differ only in who calls [`MirrorNode::step`] (the controller's Step frame, or the
+//! emulator's own clock).
+
+use scanhil_protocol::message::{FaultKind, NodeState};
+use scanhil_protocol::plant_units::ActuatorPair;
+
+use crate::plant::{Plant, PlantError, PlantEvent, PlantStep};
+
+/// What the node wants sent after an input.
+#[derive(Debug, Clone, PartialEq)]
+pub enum NodeOutput {
+    /// The angle reading of the period just stepped.
+    Angles(PlantStep),
+    /// A fault frame: the fault and its detail (over-current: the commanded current in uA;
+    /// power limit: the mean power in mW; link timeout: the missed periods).
+    Fault(FaultKind, i32),
+}
+
+/// Counters the node reports at the end of a run.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct NodeCounters {
+    /// Periods stepped.
+    pub periods: u64,
+    /// Coil commands received.
+    pub commands: u64,
+    /// Coil commands whose sequence counter skipped values.
+    pub command_gaps: u64,
+    /// Periods stepped without a fresh command for them (real time: the controller was late).
+    pub stale_periods: u64,
+    /// Step frames whose period counter was not the node's next period.
+    pub out_of_order_steps: u64,
+    /// Frames with a loop id and a malformed payload.
+    pub malformed_frames: u64,
+    /// Fault frames sent.
+    pub faults: u64,
+}
+
+/// The mirror node around an emulated plant.
+#[derive(Debug)]
+pub struct MirrorNode {
+    plant: Plant,
+    state: NodeState,
+    command_a: ActuatorPair,
+    fresh_command: bool,
+    last_command_seq: Option<u16>,
+    /// Faults active in the last period: a fault frame goes out when one starts, not every
+    /// period it lasts.
+    active_faults: Vec<FaultKind>,
+    counters: NodeCounters,
+}
+
+impl MirrorNode {
+    /// A node around `plant`, in state [`NodeState::Ready`].
+    #[must_use]
+    pub fn new(plant: Plant) -> MirrorNode {
+        MirrorNode {
+            plant,
+            state: NodeState::Ready,
+            command_a: ActuatorPair::default(),
+            fresh_command: false,
+            last_command_seq: None,
+            active_faults: Vec::new(),
+            counters: NodeCounters::default(),
+        }
+    }
+
+    /// The node's state.
+    #[must_use]
+    pub fn state(&self) -> NodeState {
+        self.state
+    }
+
+    /// The plant (for its period and active parts).
+    #[must_use]
+    pub fn plant(&self) -> &Plant {
+        &self.plant
+    }
+
+    /// Its counters so far.
+    #[must_use]
+    pub fn counters(&self) -> NodeCounters {
+        self.counters
+    }
+
+    /// The next period to step.
+    #[must_use]
+    pub fn next_period(&self) -> u64 {
+        self.plant.period_index()
+    }
+
+    /// Checks a Step frame's period counter (32 bits on the wire) against the next period.
+    pub fn check_step_counter(&mut self, period: u32) {
+        if u64::from(period) != self.next_period() & u64::from(u32::MAX) {
+            self.counters.out_of_order_steps += 1;
+        }
+    }
+
+    /// Counts a frame with a loop id and a malformed payload.
+    pub fn on_malformed_frame(&mut self) {
+        self.counters.malformed_frames += 1;
+    }
+
+    /// A coil current command with its 16-bit sequence counter. Non-finite currents are
+    /// refused by the plant at the next step; here they are held like any other command.
+    pub fn on_command(&mut self, seq: u16, currents_a: ActuatorPair) {
+        if let Some(last) = self.last_command_seq {
+            if seq != last.wrapping_add(1) {
+                self.counters.command_gaps += 1;
+            }
+        }
+        self.last_command_seq = Some(seq);
+        self.counters.commands += 1;
+        if self.state != NodeState::Fault {
+            self.command_a = currents_a;
+        }
+        self.fresh_command = true;
+    }
+
+    /// Advances the plant one period with the newest command (zero after a fault) and returns
+    /// what to send: the angle reading, then a fault frame for each fault that started in
+    /// this period.
+    ///
+    /// # Errors
+    /// The plant's error (a non-finite command): the caller reports it and stops.
+    pub fn step(&mut self) -> Result<Vec<NodeOutput>, PlantError> {
+        if self.state != NodeState::Fault {
+            self.state = NodeState::Running;
+        }
+        if !self.fresh_command {
+            self.counters.stale_periods += 1;
+        }
+        self.fresh_command = false;
+        let command = if self.state == NodeState::Fault {
+            ActuatorPair::default()
+        } else {
+            self.command_a
+        };
+        let step = self.plant.step(command)?;
+        self.counters.periods += 1;
+        let mut faults: Vec<(FaultKind, i32)> = Vec::new();
+        for event in &step.events {
+            let fault = match *event {
+                PlantEvent::CurrentLimited { requested_a, .. } => (
+                    FaultKind::OverCurrent,
+                    saturate_i32(requested_a.a.abs().max(requested_a.b.abs()) * 1e6),
+                ),
+                PlantEvent::PowerClamped { requested_w, .. } => {
+                    (FaultKind::PowerLimit, saturate_i32(requested_w * 1e3))
+                }
+                PlantEvent::PowerFault { mean_w } => {
+                    (FaultKind::PowerLimit, saturate_i32(mean_w * 1e3))
+                }
+            };
+            if !faults.iter().any(|(kind, _)| *kind == fault.0) {
+                faults.push(fault);
+            }
+        }
+        if step.faulted {
+            self.enter_fault();
+        }
+        let mut out = vec![NodeOutput::Angles(step)];
+        let kinds: Vec<FaultKind> = faults.iter().map(|(kind, _)| *kind).collect();
+        for (kind, detail) in faults {
+            if !self.active_faults.contains(&kind) {
+                self.counters.faults += 1;
+                out.push(NodeOutput::Fault(kind, detail));
+            }
+        }
+        self.active_faults = kinds;
+        Ok(out)
+    }
+
+    /// The watchdog fired after `missed_periods`: coil currents drop to zero, and the fault
+    /// to report is returned.
+    pub fn on_link_timeout(&mut self, missed_periods: u32) -> (FaultKind, i32) {
+        self.enter_fault();
+        self.counters.faults += 1;
+        (
+            FaultKind::LinkTimeout,
+            i32::try_from(missed_periods).unwrap_or(i32::MAX),
+        )
+    }
+
+    fn enter_fault(&mut self) {
+        self.state = NodeState::Fault;
+        self.command_a = ActuatorPair::default();
+    }
+}
+
+/// Rounds to the nearest `i32`, saturating (a fault frame's detail field).
+fn saturate_i32(value: f64) -> i32 {
+    value.round().clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
+}

@@ -1,0 +1,160 @@
+//! Serving the emulated nodes on real links: the mirror node (coil commands in, angle
+//! readings out) and the sensor node (distances out), in lockstep or in real time.
+//!
+//! # Layout
+//! - [`mirror_node`]: the mirror node as a protocol state machine around the plant (no I/O).
+//! - [`can_port`]: the emulator's end of a CAN link (SLCAN device role, or SocketCAN).
+//! - [`sensor_port`]: where the sensor's samples go (the ILD stream, or CAN Distance frames).
+//! - [`lockstep`]: the controller's Step frame advances the plant one period.
+//! - [`realtime`]: this emulator is the clock master on the wall clock.
+//!
+//! The process speaks on stdout in JSON lines: `{"event":"ready",...}` once the links are
+//! open (with the paths of any pty it created), and `{"event":"summary",...}` at the end.
+
+pub mod can_port;
+pub mod lockstep;
+pub mod mirror_node;
+pub mod realtime;
+pub mod sensor_port;
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::{Context, bail};
+use scanhil_protocol::link::{LinkUri, PtyPair};
+
+use crate::plant::Plant;
+use crate::scene::Scene;
+use can_port::DevicePort;
+use mirror_node::MirrorNode;
+use sensor_port::SensorPort;
+
+/// Who advances time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TimingMode {
+    /// The controller's Step frame advances the plant one period (virtual time).
+    Lockstep,
+    /// The emulator is the clock master on the wall clock.
+    Realtime,
+}
+
+/// Everything `serve` needs.
+#[derive(Debug, Clone)]
+pub struct ServeConfig {
+    /// The scene file.
+    pub scene: PathBuf,
+    /// The mirror node's link URI (`slcan:pty` creates a pty pair).
+    pub fsm: Option<String>,
+    /// The sensor node's link URI (`ild:pty` creates a pty pair; `fsm` = the mirror's link).
+    pub sensor: Option<String>,
+    /// Lockstep or real time.
+    pub timing: TimingMode,
+    /// Overrides the scene's seed.
+    pub seed: Option<u64>,
+    /// Missed periods before the watchdog fires.
+    pub watchdog_periods: u32,
+    /// Lockstep: wall-clock allowance per missed period, s.
+    pub lockstep_answer_allowance_s: f64,
+    /// Real time: how long to run, s (default: until the link closes).
+    pub duration_s: Option<f64>,
+    /// Status frames per second of loop time.
+    pub heartbeat_hz: f64,
+}
+
+/// How a serve run ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ServeOutcome {
+    /// The controller closed the link or the duration ended.
+    Finished,
+    /// The watchdog fired: currents were zeroed and a LinkTimeout fault sent.
+    LinkTimeout,
+}
+
+/// The open links of a serve run.
+#[derive(Debug)]
+pub struct ServeLinks {
+    /// The mirror node's port.
+    pub fsm: DevicePort,
+    /// Where the sensor's samples go.
+    pub sensor: SensorPort,
+}
+
+/// Loads the scene, opens the links, prints the ready line, runs, prints the summary.
+///
+/// # Errors
+/// A scene or plant that cannot be built, a link that does not open, a plant error.
+pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
+    let mut scene = Scene::load(&config.scene)?;
+    if let Some(seed) = config.seed {
+        scene.seed = seed;
+    }
+    let plant = Plant::from_scene(&scene)
+        .with_context(|| format!("building the plant of {}", config.scene.display()))?;
+    let runtime = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .context("starting the I/O runtime")?;
+    runtime.block_on(async {
+        let mut ready = serde_json::json!({
+            "event": "ready",
+            "scene": scene.name,
+            "timing": config.timing,
+            "period_s": plant.period_s(),
+            "active_parts": plant.active_parts(),
+        });
+        let Some(fsm_uri) = config.fsm.as_deref() else {
+            bail!("--fsm is required: the mirror node clocks the sensor in both timing modes");
+        };
+        let (fsm, fsm_name) = open_fsm(fsm_uri)?;
+        ready["fsm"] = fsm_name.into();
+        let (sensor, sensor_name) = SensorPort::open(config.sensor.as_deref(), &scene)?;
+        ready["sensor"] = sensor_name.into();
+        println_flushed(&ready)?;
+        let mut links = ServeLinks { fsm, sensor };
+        let mut node = MirrorNode::new(plant);
+        let report = match config.timing {
+            TimingMode::Lockstep => lockstep::run(&mut node, &mut links, config).await?,
+            TimingMode::Realtime => realtime::run(&mut node, &mut links, config).await?,
+        };
+        let summary = serde_json::json!({
+            "event": "summary",
+            "outcome": report.outcome,
+            "node": node.counters(),
+            "port": links.fsm.counters(),
+            "sensor": links.sensor.summary(),
+            "timing": report.timing,
+            "error": report.error,
+        });
+        println_flushed(&summary)?;
+        Ok(report.outcome)
+    })
+}
+
+/// What a timing loop reports back.
+#[derive(Debug, Clone)]
+pub struct LoopReport {
+    /// How it ended.
+    pub outcome: ServeOutcome,
+    /// Real time: the emulator's period statistics (JSON), lockstep: null.
+    pub timing: serde_json::Value,
+    /// A link or protocol error that ended the run, if any.
+    pub error: Option<String>,
+}
+
+fn open_fsm(uri: &str) -> anyhow::Result<(DevicePort, String)> {
+    if uri == "slcan:pty" {
+        let pair = PtyPair::open()?;
+        let name = format!("slcan:{}", pair.slave_path().display());
+        return Ok((DevicePort::slcan_on_pty(pair, &name)?, name));
+    }
+    let parsed: LinkUri = uri.parse()?;
+    Ok((DevicePort::open(&parsed)?, parsed.to_string()))
+}
+
+fn println_flushed(value: &serde_json::Value) -> anyhow::Result<()> {
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "{value}").context("writing to stdout")?;
+    out.flush().context("writing to stdout")
+}

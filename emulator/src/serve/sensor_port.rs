@@ -1,0 +1,145 @@
+//! Where the emulated sensor's samples go: the ILD 2300's own RS422 byte stream on a serial
+//! line or pty (one output cycle per sample: the distance value, then the 18-bit measured-value
+//! counter, as a sensor configured with `OUTADD_RS422 COUNTER` sends them), or Distance frames
+//! on the mirror's CAN link.
+//!
+//! The sensor's counter starts at 0 with its first sample; the summary line declares the
+//! sensor's clock (measuring rate, and the loop time of counter 0) so the host can place each
+//! distance in time, as it would estimate it for a real sensor.
+
+use scanhil_protocol::link::{LinkUri, PtyPair, SerialLine};
+
+use super::can_port::DevicePort;
+use scanhil_protocol::ild::stream::encode_cycle;
+use scanhil_protocol::message::{Distance, Message, U24_MAX};
+use crate::plant::SensorSample;
+use crate::scene::Scene;
+
+/// The 18-bit measured-value counter wraps here.
+pub const COUNTER_MODULUS: u32 = 1 << 18;
+
+/// The sensor's output.
+#[derive(Debug)]
+pub enum SensorPort {
+    /// The scene has no sensor, or no sensor link was asked for: samples are dropped.
+    Off,
+    /// The ILD RS422 stream.
+    Ild(SerialLine, SensorClockTrack),
+    /// Distance frames on the mirror's CAN link.
+    Can(SensorClockTrack),
+}
+
+/// What the sensor has sent and when its counter started.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
+pub struct SensorClockTrack {
+    /// Samples sent.
+    pub samples: u64,
+    /// The loop time of the sample with counter 0, s (`None` before the first sample).
+    pub counter_zero_s: Option<f64>,
+    /// The sensor's measuring rate, Hz.
+    pub measuring_rate_hz: f64,
+}
+
+impl SensorPort {
+    /// Opens the sensor's link: `None` (no sensor served), `ild:pty` (a new pty pair),
+    /// `ild:PATH[@BAUD]`, or `fsm` (Distance frames on the mirror's link). Returns the port
+    /// and the link's name for the ready line.
+    ///
+    /// # Errors
+    /// A link that does not open, a CAN URI given for the sensor, or a sensor link for a
+    /// scene without a sensor.
+    pub fn open(uri: Option<&str>, scene: &Scene) -> anyhow::Result<(SensorPort, String)> {
+        let Some(uri) = uri else {
+            return Ok((SensorPort::Off, String::new()));
+        };
+        if !scene.has(crate::scene::Part::Sensor) {
+            anyhow::bail!(
+                "--sensor {uri}: scene `{}` has no `sensor` part to serve",
+                scene.name
+            );
+        }
+        let clock = SensorClockTrack {
+            samples: 0,
+            counter_zero_s: None,
+            measuring_rate_hz: scene.sensor.clone().unwrap_or_default().measuring_rate_hz,
+        };
+        if uri == "fsm" {
+            return Ok((SensorPort::Can(clock), "fsm".into()));
+        }
+        if uri == "ild:pty" {
+            let pair = PtyPair::open()?;
+            let name = format!("ild:{}", pair.slave_path().display());
+            return Ok((SensorPort::Ild(SerialLine::from_pty(pair, &name)?, clock), name));
+        }
+        match uri.parse::<LinkUri>()? {
+            LinkUri::Ild { path, baud } => {
+                let name = format!("ild:{}@{baud}", path.display());
+                let line = SerialLine::open(&path, baud, &name)?;
+                Ok((SensorPort::Ild(line, clock), name))
+            }
+            other => anyhow::bail!(
+                "--sensor {other}: the sensor speaks the ILD stream (`ild:PATH`) or Distance \
+                 frames on the mirror's link (`fsm`)"
+            ),
+        }
+    }
+
+    /// Sends the samples of one period, in order.
+    ///
+    /// # Errors
+    /// Link errors.
+    pub async fn emit(
+        &mut self,
+        samples: &[SensorSample],
+        fsm: &mut DevicePort,
+    ) -> anyhow::Result<()> {
+        match self {
+            SensorPort::Off => {}
+            SensorPort::Ild(line, clock) => {
+                let mut bytes = Vec::with_capacity(6 * samples.len());
+                for sample in samples {
+                    let counter = clock.next(sample.t_s);
+                    bytes.extend(encode_cycle(&[sample.value.raw(), counter]));
+                }
+                if !bytes.is_empty() {
+                    line.write_all(&bytes).await?;
+                }
+            }
+            SensorPort::Can(clock) => {
+                for sample in samples {
+                    let counter = clock.next(sample.t_s);
+                    let sensor_time_us = ((sample.t_s * 1e6).round() as u64 & u64::from(U24_MAX)) as u32;
+                    let distance = Distance {
+                        value: sample.value,
+                        counter,
+                        sensor_time_us,
+                    };
+                    fsm.send(&Message::Distance(distance).encode()?).await?;
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// What the sensor sent, for the summary line.
+    #[must_use]
+    pub fn summary(&self) -> Option<SensorClockTrack> {
+        match self {
+            SensorPort::Off => None,
+            SensorPort::Ild(_, clock) | SensorPort::Can(clock) => Some(*clock),
+        }
+    }
+}
+
+impl SensorClockTrack {
+    /// Counts one sample measured at loop time `t_s` and returns its (wrapped) counter.
+    fn next(&mut self, t_s: f64) -> u32 {
+        let counter = (self.samples % u64::from(COUNTER_MODULUS)) as u32;
+        if self.counter_zero_s.is_none() {
+            self.counter_zero_s = Some(t_s);
+        }
+        self.samples += 1;
+        counter
+    }
+}
+

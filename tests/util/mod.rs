@@ -1,0 +1,191 @@
+//! Helpers for the loop tests: the two programs' binaries (built once, same profile as the
+//! tests), fixtures, and reading back what a run wrote.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::OnceLock;
+
+use scanhil_protocol::ild::IldValue;
+use scanhil_protocol::ild::stream::IldDecoder;
+use scanhil_protocol::message::Message;
+
+/// The workspace root.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A fixture path under `fixtures/`, as a string for command lines.
+pub fn fixture(relative: &str) -> String {
+    root().join("fixtures").join(relative).display().to_string()
+}
+
+/// The target profile directory the test binary runs from (`target/debug`).
+fn profile_dir() -> PathBuf {
+    let exe = std::env::current_exe().expect("the test binary's path");
+    // target/<profile>/deps/<test binary>
+    exe.parent()
+        .and_then(Path::parent)
+        .expect("the test binary sits in target/<profile>/deps")
+        .to_owned()
+}
+
+/// Builds `scanhil` and `scanhil-emulator` once (a no-op when `cargo test --workspace` has
+/// already built them) and returns the profile directory they are in.
+fn binaries() -> &'static Path {
+    static BUILT: OnceLock<PathBuf> = OnceLock::new();
+    BUILT.get_or_init(|| {
+        let dir = profile_dir();
+        let mut build = Command::new(env!("CARGO"));
+        build.current_dir(root()).args([
+            "build",
+            "--bins",
+            "-p",
+            "scanhil-controller",
+            "-p",
+            "scanhil-emulator",
+        ]);
+        if dir.file_name().is_some_and(|name| name == "release") {
+            build.arg("--release");
+        }
+        let status = build
+            .status()
+            .expect("running cargo build for the two programs");
+        assert!(
+            status.success(),
+            "cargo build of scanhil and scanhil-emulator failed"
+        );
+        dir
+    })
+}
+
+/// The `scanhil` binary.
+pub fn scanhil() -> PathBuf {
+    binaries().join("scanhil")
+}
+
+/// The `scanhil-emulator` binary.
+pub fn emulator() -> PathBuf {
+    binaries().join("scanhil-emulator")
+}
+
+/// Runs `scanhil` with `args` and returns its output.
+pub fn run_scanhil(args: &[&str]) -> Output {
+    Command::new(scanhil())
+        .args(args)
+        .env("SCANHIL_EMULATOR", emulator())
+        .output()
+        .expect("starting scanhil")
+}
+
+/// Panics with both streams when `output` is not a success.
+pub fn assert_success(output: &Output, what: &str) {
+    assert!(
+        output.status.success(),
+        "{what} failed ({:?}):\nstdout:\n{}\nstderr:\n{}",
+        output.status,
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
+}
+
+/// Reads and parses `report.json` in `dir`.
+pub fn report(dir: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(dir.join("report.json")).expect("report.json written");
+    serde_json::from_str(&text).expect("report.json is JSON")
+}
+
+/// A number at a JSON pointer, or a panic naming the pointer.
+pub fn number(value: &serde_json::Value, pointer: &str) -> f64 {
+    value
+        .pointer(pointer)
+        .and_then(serde_json::Value::as_f64)
+        .unwrap_or_else(|| panic!("{pointer} is not a number in {value:#}"))
+}
+
+/// What a recording held.
+#[derive(Debug, Default)]
+pub struct DecodedRecording {
+    /// Lines (frames) in the candump log.
+    pub frames: usize,
+    /// AngleReading sequence counters, in order.
+    pub angle_seqs: Vec<u16>,
+    /// CoilCommand sequence counters, in order.
+    pub command_seqs: Vec<u16>,
+    /// Fault frames.
+    pub faults: Vec<Message>,
+}
+
+/// Decodes every line of a candump `-L` log with the protocol's decoder; panics naming the
+/// line when one does not decode.
+pub fn decode_candump(path: &Path) -> DecodedRecording {
+    let text = std::fs::read_to_string(path).expect("the candump log exists");
+    let mut decoded = DecodedRecording::default();
+    for (i, line) in text.lines().enumerate() {
+        let at = || format!("{}:{}: {line:?}", path.display(), i + 1);
+        let mut fields = line.split(' ');
+        let stamp = fields.next().unwrap_or_else(|| panic!("{}", at()));
+        assert!(
+            stamp.starts_with('(') && stamp.ends_with(')') && stamp[1..stamp.len() - 1].parse::<f64>().is_ok(),
+            "bad timestamp at {}",
+            at()
+        );
+        let _iface = fields.next().unwrap_or_else(|| panic!("{}", at()));
+        let compact = fields.next().unwrap_or_else(|| panic!("{}", at()));
+        let (id, data) = compact.split_once('#').unwrap_or_else(|| panic!("{}", at()));
+        let id = u16::from_str_radix(id, 16).unwrap_or_else(|_| panic!("{}", at()));
+        let data = scanhil_protocol::can::parse_hex(data.as_bytes())
+            .unwrap_or_else(|| panic!("bad data at {}", at()));
+        let id = scanhil_protocol::can::CanId::standard(id).unwrap_or_else(|| panic!("{}", at()));
+        let frame = scanhil_protocol::can::CanFrame::new(id, &data)
+            .unwrap_or_else(|_| panic!("{}", at()));
+        let message = Message::decode(&frame).unwrap_or_else(|e| panic!("{e} at {}", at()));
+        decoded.frames += 1;
+        match message {
+            Message::AngleReading(reading) => decoded.angle_seqs.push(reading.seq),
+            Message::CoilCommand(command) => decoded.command_seqs.push(command.seq),
+            Message::Fault(_) => decoded.faults.push(message),
+            _ => {}
+        }
+    }
+    decoded
+}
+
+/// Asserts that 16-bit sequence counters count up by one without a gap.
+pub fn assert_gapless(seqs: &[u16], what: &str) {
+    assert!(!seqs.is_empty(), "no {what} recorded");
+    for pair in seqs.windows(2) {
+        assert_eq!(
+            pair[1],
+            pair[0].wrapping_add(1),
+            "{what} sequence jumps from {} to {}",
+            pair[0],
+            pair[1]
+        );
+    }
+}
+
+/// Decodes a raw ILD capture with the protocol's stream decoder; every cycle must be a
+/// distance value and its counter, with no byte skipped. Returns (counter, value) per cycle.
+pub fn decode_ild(path: &Path) -> Vec<(u32, IldValue)> {
+    let bytes = std::fs::read(path).expect("the ILD capture exists");
+    let mut decoder = IldDecoder::new();
+    let mut cycles: Vec<Vec<u32>> = Vec::new();
+    for event in decoder.push(&bytes) {
+        let word = event.unwrap_or_else(|gap| panic!("{}: {gap}", path.display()));
+        if word.first_in_cycle {
+            cycles.push(Vec::new());
+        }
+        cycles
+            .last_mut()
+            .unwrap_or_else(|| panic!("{}: stream starts mid-cycle", path.display()))
+            .push(word.raw);
+    }
+    assert!(decoder.finish().is_none(), "{}: ends mid-value", path.display());
+    cycles
+        .into_iter()
+        .map(|cycle| {
+            assert_eq!(cycle.len(), 2, "{}: a cycle is value + counter", path.display());
+            (cycle[1], IldValue::from_raw(cycle[0]))
+        })
+        .collect()
+}
