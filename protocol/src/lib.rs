@@ -7,12 +7,16 @@
 //! - [`message`]: the CAN message set: ids, typed messages, the signal table (single source
 //!   of the layout).
 //! - [`plant_units`]: the mirror node's device contract: units, scalings, axis rotation.
+//! - [`candump`]: candump `-L` log lines, reader and writer (classical and FD).
 //! - [`dbc`]: the DBC file rendered from the message table (`protocol/scanhil.dbc`).
 //! - [`ild`]: the ILD 2300 sensor: RS422 values, the L/M/H byte stream, ASCII commands.
+//! - [`loop_timing`]: period jitter and overruns of a real-time loop, as both ends report them.
 
 pub mod can;
+pub mod candump;
 pub mod dbc;
 pub mod ild;
+pub mod loop_timing;
 pub mod message;
 pub mod plant_units;
 pub mod slcan;
