@@ -7,8 +7,11 @@
 #   - by default inside the throwaway VM of ci/vcan-vm.sh (vcan0 is created there);
 #   - with --direct right here, on a host whose kernel has CAN and whose vcan0 is up
 #     (sudo modprobe vcan; sudo ip link add dev vcan0 type vcan; sudo ip link set up vcan0).
-# TEST-FILTER arguments (default: SCANHIL_VCAN_TEST_FILTER, else none) go to each test binary
-# as libtest filters. Fails when a test fails, when no test ran at all, or when the VM fails.
+# TEST-FILTER arguments (default: SCANHIL_VCAN_TEST_FILTER, else "vcan") go to each test binary
+# as libtest filters (substrings of the test path): by default only the tests with "vcan" in
+# their path run, e.g. `link::socketcan::vcan::frames_round_trip` in a `mod vcan` behind
+# `#[cfg(feature = "vcan")]`; the rest of the crate's tests run on the host anyway.
+# Fails when a test fails, when no test ran at all, or when the VM fails.
 set -euo pipefail
 
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd -P)
@@ -63,8 +66,8 @@ host() {
         shift
     fi
     local filters=("$@")
-    if ((${#filters[@]} == 0)) && [[ -n ${SCANHIL_VCAN_TEST_FILTER:-} ]]; then
-        read -r -a filters <<<"$SCANHIL_VCAN_TEST_FILTER"
+    if ((${#filters[@]} == 0)); then
+        read -r -a filters <<<"${SCANHIL_VCAN_TEST_FILTER:-vcan}"
     fi
     cd "$repo"
     local binaries=()
@@ -72,7 +75,6 @@ host() {
     # (The process substitution hides cargo's status: an empty list is the sign of a failed build.)
     ((${#binaries[@]} > 0)) || fail "cargo built no test binary for scanhil-protocol --features $FEATURES"
 
-    local log
     log=$(mktemp)
     trap 'rm -f "$log"' EXIT
     local status=0
@@ -93,7 +95,7 @@ host() {
     local passed
     passed=$(sed -n 's/^test result: ok\. \([0-9]*\) passed.*/\1/p' "$log" | awk '{ sum += $1 } END { print sum + 0 }')
     ((passed > 0)) || fail "no test ran (features '$FEATURES', filters '${filters[*]}'): nothing was checked"
-    echo "socketcan-tests: ok: $passed tests passed on a real vcan0 ($( ((direct)) && echo "this host" || echo "in the VM"))"
+    echo "socketcan-tests: ok: $passed tests (filters '${filters[*]}') passed on a real vcan0 ($( ((direct)) && echo "this host" || echo "in the VM"))"
 }
 
 if [[ ${1:-} == --in-vm ]]; then
