@@ -54,7 +54,7 @@ fn main() -> anyhow::Result<()> {
     let truth_model = GeometryModel::ExactReflection;
     let scene = stud_scene(truth_model);
     let checkpoints: Vec<f64> = (1..=100).map(|k| k as f64 * 0.01).collect();
-    let trajectories: [(&str, fn(f64) -> (f64, f64)); 2] =
+    let trajectories: [(&str, imaging_support::Angles); 2] =
         [("lissajous", lissajous), ("raster", raster)];
     let mut timing = serde_json::Map::new();
     let mut samples = Vec::new();

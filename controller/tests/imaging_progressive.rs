@@ -14,7 +14,10 @@ use scanhil_geometry::{GeometryModel, Scanner};
 
 const CHECKPOINTS_S: [f64; 6] = [0.05, 0.1, 0.2, 0.4, 0.7, 1.0];
 
-fn run(angles: fn(f64) -> (f64, f64), spec: Option<GridSpec>) -> (GridSpec, Vec<ProgressivePoint>) {
+fn run(
+    angles: imaging_support::Angles,
+    spec: Option<GridSpec>,
+) -> (GridSpec, Vec<ProgressivePoint>) {
     let scene = stud_scene(GeometryModel::SmallAngle);
     let samples = simulate_samples(angles, &scene, 10_000.0, 1.0);
     let points = reconstruct(&samples, &Scanner::paper(GeometryModel::SmallAngle))

@@ -147,7 +147,7 @@ fn bad_recordings_name_file_line_and_field() {
 #[test]
 fn the_pipeline_measures_the_simulated_stud_from_both_trajectories() {
     for (name, angles) in [
-        ("lissajous", lissajous as fn(f64) -> (f64, f64)),
+        ("lissajous", lissajous as imaging_support::Angles),
         ("raster", raster),
     ] {
         let samples = simulate_samples(

@@ -183,7 +183,7 @@ pub fn feature_height(
     let var = selected.iter().map(|h| (h - mean).powi(2)).sum::<f64>() / (n - 1.0);
     selected.sort_by(f64::total_cmp);
     let mid = selected.len() / 2;
-    let median = if selected.len() % 2 == 0 {
+    let median = if selected.len().is_multiple_of(2) {
         0.5 * (selected[mid - 1] + selected[mid])
     } else {
         selected[mid]
@@ -202,7 +202,7 @@ pub fn feature_height(
 /// found with a bucket grid of side `margin`.
 fn top_points(heights: &[([f64; 3], f64)], threshold: f64, margin: f64) -> Vec<f64> {
     let above = heights.iter().filter(|(_, h)| *h > threshold);
-    if !(margin > 0.0) {
+    if margin.is_nan() || margin <= 0.0 {
         return above.map(|&(_, h)| h).collect();
     }
     let key = |x: f64, y: f64| ((x / margin).floor() as i64, (y / margin).floor() as i64);

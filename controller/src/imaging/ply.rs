@@ -602,7 +602,7 @@ fn read_binary_element(
                 Property::List { count, item } => {
                     let b = cursor.take(count.size(), &format!("{what} {name} count"))?;
                     let n = list_len(count.decode(b, little), cursor)?;
-                    let bytes = n.checked_mul(item.size()).unwrap_or(usize::MAX);
+                    let bytes = n.saturating_mul(item.size());
                     cursor.take(bytes, &format!("{what} {name} items"))?;
                 }
             }

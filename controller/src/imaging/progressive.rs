@@ -59,7 +59,8 @@ impl<F: Fn(f64, f64) -> f64> ScanScene for HeightFieldScene<F> {
         };
         let (start, end) = self.range_mm;
         let mut lo = start;
-        if !(gap(lo) > 0.0) {
+        // Already at or below the surface at the start of the range (or NaN): no reading.
+        if gap(lo).is_nan() || gap(lo) <= 0.0 {
             return None;
         }
         while lo < end {

@@ -68,7 +68,7 @@ impl Plane {
         let (a, b, c) = (Vector3::from(a), Vector3::from(b), Vector3::from(c));
         let n = (b - a).cross(&(c - a));
         let scale = (b - a).norm() * (c - a).norm();
-        if !(n.norm() > 1e-9 * scale) {
+        if n.norm().is_nan() || n.norm() <= 1e-9 * scale {
             return None;
         }
         Some(Plane::from_normal(n.normalize(), &a))

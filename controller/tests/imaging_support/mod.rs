@@ -13,6 +13,9 @@ pub const BASE_Z_MM: f64 = -130.0;
 /// The stud's height (the paper's stage-scanner reference), mm.
 pub const STUD_HEIGHT_MM: f64 = 4.663;
 
+/// Mirror deflections `(d_alpha, d_beta)` in rad against time in s.
+pub type Angles = fn(f64) -> (f64, f64);
+
 /// Lissajous 27 Hz on d_beta (x), 52 Hz on d_alpha (y), zero phase, full range.
 pub fn lissajous(t: f64) -> (f64, f64) {
     let w = 2.0 * std::f64::consts::PI;
