@@ -7,11 +7,13 @@
 //! - [`message`]: the CAN message set: ids, typed messages, the signal table (single source
 //!   of the layout).
 //! - [`plant_units`]: the mirror node's device contract: units, scalings, axis rotation.
+//! - [`bus_load`]: worst-case bits per frame and the load a message budget puts on a bus.
 //! - [`candump`]: candump `-L` log lines, reader and writer (classical and FD).
 //! - [`dbc`]: the DBC file rendered from the message table (`protocol/scanhil.dbc`).
 //! - [`ild`]: the ILD 2300 sensor: RS422 values, the L/M/H byte stream, ASCII commands.
 //! - [`loop_timing`]: period jitter and overruns of a real-time loop, as both ends report them.
 
+pub mod bus_load;
 pub mod can;
 pub mod candump;
 pub mod dbc;
