@@ -177,12 +177,13 @@ fn the_pipeline_measures_the_simulated_stud_from_both_trajectories() {
 fn scanhil_reconstruct_writes_ply_png_csv_and_report() {
     let dir = tempfile::tempdir().unwrap();
     let input = dir.path().join("rec.csv");
-    let samples = simulate_samples(
+    let mut samples = simulate_samples(
         lissajous,
         &stud_scene(GeometryModel::SmallAngle),
         5_000.0,
         1.0,
     );
+    samples[7].z_meas_mm = None;
     write_recording_csv(std::fs::File::create(&input).unwrap(), &samples).unwrap();
     let out = dir.path().join("out");
     let run = std::process::Command::new(env!("CARGO_BIN_EXE_scanhil"))
@@ -213,6 +214,10 @@ fn scanhil_reconstruct_writes_ply_png_csv_and_report() {
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(report.model, "small_angle");
     assert_eq!(report.samples, samples.len());
+    assert_eq!(
+        (report.missing_samples, report.missing_by_reason["empty"]),
+        (1, 1)
+    );
     assert_eq!(report.map_quantity, "height_above_plane_mm");
     // At 5 kHz the samples are ~0.5 mm apart along the figure, so a few wall hits pass the
     // edge margin: a slightly lower mean and a larger spread than at 10 kHz.

@@ -158,7 +158,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         Encoding::Binary => PlyEncoding::BinaryLittleEndian,
         Encoding::Ascii => PlyEncoding::Ascii,
     };
-    let report = write_outputs(&imaging, &args.out_dir, encoding, recording.samples.len())?;
+    let report = write_outputs(
+        &imaging,
+        &args.out_dir,
+        encoding,
+        &recording.missing_by_reason,
+    )?;
     println!(
         "{}: {} samples, {} points ({} missing), model {}, {}x{} cells of {} mm, coverage {:.3}",
         args.input.display(),

@@ -2,6 +2,7 @@
 //! plane, measure a feature, and write PLY + PNG + CSV + JSON. `scanhil reconstruct` and the
 //! loop's `scan` both call [`image_samples`] and [`write_outputs`].
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use scanhil_geometry::{GeometryModel, Scanner, ScannerSetup};
@@ -151,6 +152,9 @@ pub struct ImagingReport {
     pub missing_samples: usize,
     /// Samples with a non-finite value.
     pub non_finite_samples: usize,
+    /// Missing distances by reason, as the recording gave them (see
+    /// [`super::recording::Recording::missing_by_reason`]).
+    pub missing_by_reason: BTreeMap<String, usize>,
     /// What the map holds: `z_mm` or `height_above_plane_mm`.
     pub map_quantity: String,
     /// The grid.
@@ -180,12 +184,12 @@ pub const OUTPUT_FILES: [&str; 4] = [
 ];
 
 /// Writes `points.ply`, `height_map.png`, `height_map.csv` and `report.json` into `dir`
-/// (created if needed) and returns the report.
+/// (created if needed) and returns the report; `missing_by_reason` is copied into it.
 pub fn write_outputs(
     imaging: &Imaging,
     dir: &Path,
     encoding: PlyEncoding,
-    samples: usize,
+    missing_by_reason: &BTreeMap<String, usize>,
 ) -> Result<ImagingReport, ImagingError> {
     let io = |path: PathBuf| move |source| ImagingError::Io { path, source };
     std::fs::create_dir_all(dir).map_err(io(dir.to_owned()))?;
@@ -200,10 +204,11 @@ pub fn write_outputs(
     let r = &imaging.reconstruction;
     let report = ImagingReport {
         model: r.cloud.model.name().to_string(),
-        samples,
+        samples: r.cloud.points.len() + r.missing_samples + r.non_finite_samples,
         points: r.cloud.points.len(),
         missing_samples: r.missing_samples,
         non_finite_samples: r.non_finite_samples,
+        missing_by_reason: missing_by_reason.clone(),
         map_quantity: if imaging.plane.is_some() {
             "height_above_plane_mm"
         } else {
