@@ -19,7 +19,8 @@
 #   SCANHIL_VM_REFRESH=1        re-resolve and re-fetch packages even when cached
 #   SCANHIL_VM_ACCEL=auto       tcg, kvm, or auto (kvm where the CPU has vmx/svm, /dev/kvm is
 #                               usable and a KVM boot works; otherwise tcg)
-#   SCANHIL_VM_CPUS=2           virtual CPUs;  SCANHIL_VM_MEMORY_MB=512: guest memory
+#   SCANHIL_VM_CPUS=1           virtual CPUs (one boots fastest under TCG on a busy host)
+#   SCANHIL_VM_MEMORY_MB=512    guest memory
 #   SCANHIL_VM_VCAN="vcan0"     vcan interfaces to create (space-separated)
 #   SCANHIL_VM_SHARE="DIR ..."  more host folders to mount at their paths (the repository always is)
 #   SCANHIL_VM_ENV="NAME ..."   more host variables to pass to COMMAND
@@ -43,7 +44,7 @@ readonly VM_REFRESH=${SCANHIL_VM_REFRESH:-0}
 readonly VM_TIMEOUT_S=${SCANHIL_VM_TIMEOUT:-60}
 readonly VM_BOOT_TIMEOUT_S=${SCANHIL_VM_BOOT_TIMEOUT:-30}
 readonly VM_ACCEL=${SCANHIL_VM_ACCEL:-auto}
-readonly VM_CPUS=${SCANHIL_VM_CPUS:-2}
+readonly VM_CPUS=${SCANHIL_VM_CPUS:-1}
 readonly VM_MEMORY_MB=${SCANHIL_VM_MEMORY_MB:-512}
 readonly VM_VCAN=${SCANHIL_VM_VCAN:-vcan0}
 readonly VM_VERBOSE=${SCANHIL_VM_VERBOSE:-0}
