@@ -9,6 +9,10 @@
 //!   sensor.
 //! - [`drive_model`]: the composed linear dynamics of the active parts.
 //! - [`integrator`]: exact ZOH, RK4, trapezoid, Euler, and the stability check.
+//! - [`precision`]: the integrators' error against run time (work-precision study).
+//! - [`scene`]: scene files and their parts list.
+//! - [`plant`]: the composed per-period step and its timing convention.
+//! - [`serve`]: the mirror and sensor nodes on real links (lockstep and real time).
 
 pub mod amplifier;
 pub mod angle_sensor;
@@ -17,6 +21,10 @@ pub mod drive_model;
 pub mod integrator;
 pub mod mirror;
 pub mod optics;
+pub mod plant;
 pub mod power;
+pub mod precision;
+pub mod scene;
 pub mod sensor;
+pub mod serve;
 pub mod surface;

@@ -17,14 +17,23 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Serve the emulated mirror node and/or sensor on real links (SLCAN, SocketCAN, ILD).
+    Serve(commands::serve::Args),
     /// Where the spot lands, the true surface there and what the sensor reports, for a static mirror.
     Probe(commands::probe::Args),
+    /// Open-loop response of the emulated mirror to a coil current step (a bench bump test).
+    Step(commands::step::Args),
+    /// Integrators' error against the exact solution and run time (work-precision study).
+    Precision(commands::precision::Args),
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Serve(args) => commands::serve::run(args),
         Command::Probe(args) => commands::probe::run(args),
+        Command::Step(args) => commands::step::run(args),
+        Command::Precision(args) => commands::precision::run(args),
     };
     match result {
         Ok(code) => code,

@@ -1,0 +1,287 @@
+//! The composed plant: one pure, seeded, deterministic step per control period, built from
+//! the scene's active parts only.
+//!
+//! # Timing convention
+//! Period k covers `[k Ta, (k+1) Ta)`, `Ta = 1 / control_rate_hz`. [`Plant::step`] with the
+//! command `u_k`:
+//! 1. integrates the dynamics over period k with the command of the previous step, `u_{k-1}`
+//!    (zero for k = 0), held constant: this is eq. 4's `e^(-s Ta)`, exactly one period;
+//! 2. latches `u_k`, which acts over period k+1;
+//! 3. returns the angles sampled at `t = (k+1) Ta`, the end of period k (in the lockstep
+//!    protocol, AngleReading(k); the controller uses it to compute `u_{k+1}`).
+//!
+//! So, as a map from the command sequence `u[k]` to the measurement sequence
+//! `y[k] = angle(k Ta)`, the plant with only the `axes` part is exactly
+//! `z^-1 * ZOH(K ws^2 / (s^2 + 2 zeta ws s + ws^2))`. The `amplifier` part adds its 10 kHz current
+//! loop lag, `cross_talk` the coupling. The current limit and the power limit act on `u_{k-1}`
+//! when it is applied (step 1). The triangulation sensor's samples whose instants fall in
+//! `(k Ta, (k+1) Ta]` are returned by step k, with the mirror angles interpolated linearly
+//! across the period.
+
+use serde::Serialize;
+
+use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
+
+use crate::amplifier::AmplifierConfig;
+use crate::angle_sensor::AngleSensor;
+use crate::drive_model::DriveModel;
+use crate::integrator::{StabilityError, Stepper};
+use crate::mirror::SensingAxis;
+use crate::power::{PowerAction, PowerMonitor, coil_resistance_ohm};
+use crate::scene::{Part, Scene};
+
+/// Why the plant could not be built or stepped.
+#[derive(Debug, thiserror::Error)]
+pub enum PlantError {
+    /// The scene's integrator and step are unstable on its plant.
+    #[error("scene {scene}: {source}")]
+    Unstable {
+        /// The scene's name.
+        scene: String,
+        /// The stability check's finding.
+        source: StabilityError,
+    },
+    /// A coil current command was NaN or infinite; the plant state is unchanged.
+    #[error("period {period_index}: coil current command is not finite (a = {a_a} A, b = {b_a} A)")]
+    NonFiniteCommand {
+        /// The period the command was given for.
+        period_index: u64,
+        /// The command on coil axis a, in A.
+        a_a: f64,
+        /// The command on coil axis b, in A.
+        b_a: f64,
+    },
+}
+
+/// Something a limit did in a period.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[serde(tag = "event", rename_all = "snake_case")]
+pub enum PlantEvent {
+    /// The amplifier clamped the command to its current limit.
+    CurrentLimited {
+        /// The command before the limit, in A.
+        requested_a: ActuatorPair,
+        /// The command after it, in A.
+        limited_a: ActuatorPair,
+    },
+    /// The power limit scaled the currents down (`on_exceed: clamp`).
+    PowerClamped {
+        /// The power the currents would have dissipated this period, in W.
+        requested_w: f64,
+        /// The power allowed, in W.
+        allowed_w: f64,
+    },
+    /// The power limit latched a fault (`on_exceed: fault`); currents are zero from now on.
+    PowerFault {
+        /// The window mean the currents would have reached, in W.
+        mean_w: f64,
+    },
+}
+
+/// What one control period produced.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PlantStep {
+    /// k.
+    pub period_index: u64,
+    /// `(k+1) Ta`: when the angles were sampled, in s.
+    pub t_end_s: f64,
+    /// The angle sensor's output, in rad (the true angles when `angle_sensor_noise` is off).
+    pub measured_angles_rad: SensingPair,
+    /// The mechanical angles, in rad.
+    pub true_angles_rad: SensingPair,
+    /// The coil current commands that acted during period k (delayed, limited), in A.
+    pub applied_currents_a: ActuatorPair,
+    /// `I^2 R` of this period over both coil axes, in W.
+    pub coil_power_w: f64,
+    /// The mean power over the thermal window (only with `power_limit`), in W.
+    pub mean_power_w: Option<f64>,
+    /// What the limits did.
+    pub events: Vec<PlantEvent>,
+    /// Whether a power fault holds the currents at zero.
+    pub faulted: bool,
+}
+
+/// The plant.
+#[derive(Debug, Clone)]
+pub struct Plant {
+    scene_name: String,
+    period_s: f64,
+    active_parts: Vec<Part>,
+    model: DriveModel,
+    stepper: Option<Stepper>,
+    state: Vec<f64>,
+    fixed_angles_rad: SensingPair,
+    amplifier: Option<AmplifierConfig>,
+    power: Option<PowerMonitor>,
+    resistance_ohm: f64,
+    angle_sensor: Option<AngleSensor>,
+    pending_a: ActuatorPair,
+    period_index: u64,
+}
+
+impl Plant {
+    /// Builds the listed parts of `scene` (nothing else) and checks the integrator's stability.
+    pub fn from_scene(scene: &Scene) -> Result<Plant, PlantError> {
+        let period_s = scene.period_s();
+        let mirror = scene.has(Part::Axes).then_some(&scene.mirror);
+        let amplifier = scene.has(Part::Amplifier).then(|| scene.amplifier.clone());
+        let cross_talk = scene.has(Part::CrossTalk).then_some(&scene.cross_talk);
+        let model = DriveModel::new(mirror, amplifier.as_ref(), cross_talk);
+        let stepper = if model.states() > 0 {
+            let stepper = Stepper::new(&model, period_s, scene.integrator).map_err(|source| {
+                PlantError::Unstable {
+                    scene: scene.name.clone(),
+                    source,
+                }
+            })?;
+            Some(stepper)
+        } else {
+            None
+        };
+        let init = scene.mirror.initial_angles_rad;
+        let resistance_ohm = scene
+            .power_limit
+            .coil_resistance_ohm
+            .unwrap_or_else(|| coil_resistance_ohm(&scene.mirror));
+        Ok(Plant {
+            scene_name: scene.name.clone(),
+            period_s,
+            active_parts: scene.active_parts(),
+            state: model.initial_state([init.alpha, init.beta]),
+            model,
+            stepper,
+            fixed_angles_rad: init,
+            amplifier,
+            power: scene
+                .has(Part::PowerLimit)
+                .then(|| PowerMonitor::new(&scene.power_limit, resistance_ohm, period_s)),
+            resistance_ohm,
+            angle_sensor: scene
+                .has(Part::AngleSensorNoise)
+                .then(|| AngleSensor::new(&scene.angle_sensor, scene.seed)),
+            pending_a: ActuatorPair::default(),
+            period_index: 0,
+        })
+    }
+
+    /// The scene's name.
+    #[must_use]
+    pub fn scene_name(&self) -> &str {
+        &self.scene_name
+    }
+
+    /// The control period Ta, in s.
+    #[must_use]
+    pub fn period_s(&self) -> f64 {
+        self.period_s
+    }
+
+    /// Periods stepped so far.
+    #[must_use]
+    pub fn period_index(&self) -> u64 {
+        self.period_index
+    }
+
+    /// The parts that are built and stepped, in canonical order.
+    #[must_use]
+    pub fn active_parts(&self) -> &[Part] {
+        &self.active_parts
+    }
+
+    /// The coil resistance per actuator axis in use, in ohm.
+    #[must_use]
+    pub fn coil_resistance_ohm(&self) -> f64 {
+        self.resistance_ohm
+    }
+
+    /// The integrator in use as `(method, sub-steps)`, if anything is integrated.
+    #[must_use]
+    pub fn integrator(&self) -> Option<(crate::integrator::Method, u32)> {
+        self.stepper.as_ref().map(|s| (s.method(), s.substeps()))
+    }
+
+    /// The mechanical angles now (at `period_index * Ta`), in rad.
+    #[must_use]
+    pub fn true_angles_rad(&self) -> SensingPair {
+        let angle = |axis: SensingAxis| {
+            self.model
+                .angle_rad(&self.state, axis)
+                .unwrap_or_else(|| axis.of(self.fixed_angles_rad))
+        };
+        SensingPair {
+            alpha: angle(SensingAxis::Alpha),
+            beta: angle(SensingAxis::Beta),
+        }
+    }
+
+    /// Clears a latched power fault.
+    pub fn reset_fault(&mut self) {
+        if let Some(power) = &mut self.power {
+            power.reset_fault();
+        }
+    }
+
+    /// Advances one control period with the command `coil_currents_a` (see the module doc for
+    /// when it acts). A NaN or infinite command is refused and changes nothing.
+    pub fn step(&mut self, coil_currents_a: ActuatorPair) -> Result<PlantStep, PlantError> {
+        if !(coil_currents_a.a.is_finite() && coil_currents_a.b.is_finite()) {
+            return Err(PlantError::NonFiniteCommand {
+                period_index: self.period_index,
+                a_a: coil_currents_a.a,
+                b_a: coil_currents_a.b,
+            });
+        }
+        let mut events = Vec::new();
+        let mut applied = std::mem::replace(&mut self.pending_a, coil_currents_a);
+        if let Some(amp) = &self.amplifier {
+            let (limited, clamped) = amp.limit(applied);
+            if clamped {
+                events.push(PlantEvent::CurrentLimited {
+                    requested_a: applied,
+                    limited_a: limited,
+                });
+            }
+            applied = limited;
+        }
+        let mut mean_power_w = None;
+        let mut faulted = false;
+        if let Some(power) = &mut self.power {
+            let (admitted, action) = power.admit(applied);
+            match action {
+                PowerAction::Pass | PowerAction::HeldByFault => {}
+                PowerAction::Clamped {
+                    requested_w,
+                    allowed_w,
+                } => events.push(PlantEvent::PowerClamped {
+                    requested_w,
+                    allowed_w,
+                }),
+                PowerAction::Faulted { mean_w } => events.push(PlantEvent::PowerFault { mean_w }),
+            }
+            applied = admitted;
+            mean_power_w = Some(power.mean_w());
+            faulted = power.faulted();
+        }
+        if let Some(stepper) = &mut self.stepper {
+            stepper.step(&mut self.state, [applied.a, applied.b]);
+        }
+        let true_angles_rad = self.true_angles_rad();
+        let measured_angles_rad = match &mut self.angle_sensor {
+            Some(sensor) => sensor.measure(true_angles_rad),
+            None => true_angles_rad,
+        };
+        let period_index = self.period_index;
+        self.period_index += 1;
+        Ok(PlantStep {
+            period_index,
+            t_end_s: self.period_index as f64 * self.period_s,
+            measured_angles_rad,
+            true_angles_rad,
+            applied_currents_a: applied,
+            coil_power_w: self.resistance_ohm * (applied.a * applied.a + applied.b * applied.b),
+            mean_power_w,
+            events,
+            faulted,
+        })
+    }
+}

@@ -1,0 +1,288 @@
+//! Scene files (`fixtures/scenes/*.json`): what is in front of the sensor, and which parts of
+//! the plant are in play.
+//!
+//! A scene lists its active [`Part`]s; the plant builds and steps only those. Every section
+//! other than `name` and `parts` is optional and defaults to the paper's values. A section
+//! whose part is not listed is accepted and ignored, so a part is switched on or off by
+//! editing `parts` alone. Relative file paths inside the scene (height maps) are resolved
+//! against the scene file's directory ([`Scene::base_dir`]).
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::amplifier::AmplifierConfig;
+use crate::angle_sensor::AngleSensorConfig;
+use crate::cross_talk::CrossTalkConfig;
+use crate::integrator::IntegratorConfig;
+use crate::mirror::MirrorConfig;
+use crate::power::PowerLimitConfig;
+
+// TEMPORARY until the optics half publishes its config types.
+type SurfaceConfig = serde_json::Value;
+type OpticsConfig = serde_json::Value;
+type SensorConfig = serde_json::Value;
+
+/// The paper's control rate, in Hz (Ta = 50 us).
+pub const DEFAULT_CONTROL_RATE_HZ: f64 = 20_000.0;
+
+/// A part of the plant a scene can switch on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Part {
+    /// The mirror's mechanics (eq. 4) on the axes in `mirror.axes`.
+    Axes,
+    /// The coupling matrix between the sensing axes.
+    CrossTalk,
+    /// The current amplifiers: current limit and 10 kHz current loop.
+    Amplifier,
+    /// The coil power limit (clamp or fault).
+    PowerLimit,
+    /// Quantisation, noise and offset of the mirror angle sensor.
+    AngleSensorNoise,
+    /// Noise of the triangulation sensor.
+    SensorNoise,
+    /// The optical path from mirror angles to the spot on the surface.
+    Optics,
+    /// Blocking of the illumination and reflection paths.
+    Shading,
+    /// The ILD 2300 triangulation sensor on its own clock.
+    Sensor,
+}
+
+impl Part {
+    /// Every part, in the order runs report them.
+    pub const ALL: [Part; 9] = [
+        Part::Axes,
+        Part::CrossTalk,
+        Part::Amplifier,
+        Part::PowerLimit,
+        Part::AngleSensorNoise,
+        Part::SensorNoise,
+        Part::Optics,
+        Part::Shading,
+        Part::Sensor,
+    ];
+
+    /// The name used in scene files and output.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Part::Axes => "axes",
+            Part::CrossTalk => "cross_talk",
+            Part::Amplifier => "amplifier",
+            Part::PowerLimit => "power_limit",
+            Part::AngleSensorNoise => "angle_sensor_noise",
+            Part::SensorNoise => "sensor_noise",
+            Part::Optics => "optics",
+            Part::Shading => "shading",
+            Part::Sensor => "sensor",
+        }
+    }
+
+    /// The part this one needs, if any.
+    #[must_use]
+    pub fn requires(self) -> Option<Part> {
+        match self {
+            Part::CrossTalk => Some(Part::Axes),
+            Part::Shading | Part::Sensor => Some(Part::Optics),
+            Part::SensorNoise => Some(Part::Sensor),
+            _ => None,
+        }
+    }
+}
+
+impl fmt::Display for Part {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// One scene file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Scene {
+    /// A short name, echoed by every run.
+    pub name: String,
+    /// Free text.
+    #[serde(default)]
+    pub description: String,
+    /// The control rate (one plant step per period), in Hz.
+    #[serde(default = "default_control_rate_hz")]
+    pub control_rate_hz: f64,
+    /// The seed every random part derives its stream from.
+    #[serde(default)]
+    pub seed: u64,
+    /// The active parts; nothing else is built or stepped.
+    pub parts: Vec<Part>,
+    /// Eq. 4 parameters and moving axes (part `axes`).
+    #[serde(default)]
+    pub mirror: MirrorConfig,
+    /// The integrator of the drive dynamics.
+    #[serde(default)]
+    pub integrator: IntegratorConfig,
+    /// Coupling between the axes (part `cross_talk`).
+    #[serde(default)]
+    pub cross_talk: CrossTalkConfig,
+    /// Current amplifiers (part `amplifier`).
+    #[serde(default)]
+    pub amplifier: AmplifierConfig,
+    /// Coil resistance and power limit (part `power_limit`; the resistance is also used for
+    /// the power every step reports).
+    #[serde(default)]
+    pub power_limit: PowerLimitConfig,
+    /// Mirror angle sensor imperfections (part `angle_sensor_noise`).
+    #[serde(default)]
+    pub angle_sensor: AngleSensorConfig,
+    /// What is in front of the sensor (required with part `optics`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surface: Option<SurfaceConfig>,
+    /// The optical geometry (part `optics`; paper geometry when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub optics: Option<OpticsConfig>,
+    /// The triangulation sensor (part `sensor`; ILD 2300-100 defaults when absent).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor: Option<SensorConfig>,
+    /// The directory of the file the scene came from (not part of the JSON).
+    #[serde(skip)]
+    base_dir: Option<PathBuf>,
+}
+
+fn default_control_rate_hz() -> f64 {
+    DEFAULT_CONTROL_RATE_HZ
+}
+
+/// Why a scene could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    /// The file could not be read.
+    #[error("cannot read scene {path}: {source}")]
+    Io {
+        /// The scene file.
+        path: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
+    },
+    /// The JSON is malformed or does not match the scene format.
+    #[error("scene {path}: line {line}, column {column}: {message}")]
+    Parse {
+        /// The scene file.
+        path: PathBuf,
+        /// 1-based line of the error.
+        line: usize,
+        /// 1-based column of the error.
+        column: usize,
+        /// What serde found wrong.
+        message: String,
+    },
+    /// A field has a value the plant cannot use.
+    #[error("scene {path}: field `{field}`: {reason}")]
+    Invalid {
+        /// The scene file.
+        path: PathBuf,
+        /// The field, as a dotted path.
+        field: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+}
+
+impl Scene {
+    /// Reads, parses and validates a scene file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Scene::from_json_str(&text, path)
+    }
+
+    /// Parses and validates scene JSON; `origin` names it in errors and sets the base
+    /// directory for relative paths.
+    pub fn from_json_str(text: &str, origin: &Path) -> Result<Scene, SceneError> {
+        let mut scene: Scene = serde_json::from_str(text).map_err(|e| SceneError::Parse {
+            path: origin.to_path_buf(),
+            line: e.line(),
+            column: e.column(),
+            message: e.to_string(),
+        })?;
+        scene.base_dir = origin.parent().map(Path::to_path_buf);
+        scene
+            .validate()
+            .map_err(|(field, reason)| SceneError::Invalid {
+                path: origin.to_path_buf(),
+                field,
+                reason,
+            })?;
+        Ok(scene)
+    }
+
+    /// Whether `part` is active.
+    #[must_use]
+    pub fn has(&self, part: Part) -> bool {
+        self.parts.contains(&part)
+    }
+
+    /// The control period, in s.
+    #[must_use]
+    pub fn period_s(&self) -> f64 {
+        1.0 / self.control_rate_hz
+    }
+
+    /// The directory the scene file is in, for relative paths inside it.
+    #[must_use]
+    pub fn base_dir(&self) -> Option<&Path> {
+        self.base_dir.as_deref()
+    }
+
+    /// The active parts in the canonical order of [`Part::ALL`].
+    #[must_use]
+    pub fn active_parts(&self) -> Vec<Part> {
+        Part::ALL.into_iter().filter(|p| self.has(*p)).collect()
+    }
+
+    /// Checks values and part dependencies; on failure, the field and why.
+    pub fn validate(&self) -> Result<(), (String, String)> {
+        if !(self.control_rate_hz.is_finite() && self.control_rate_hz > 0.0) {
+            return Err((
+                "control_rate_hz".into(),
+                format!("must be finite and > 0, got {}", self.control_rate_hz),
+            ));
+        }
+        for (i, part) in self.parts.iter().enumerate() {
+            if self.parts[..i].contains(part) {
+                return Err(("parts".into(), format!("part `{part}` is listed twice")));
+            }
+            if let Some(needed) = part.requires()
+                && !self.has(needed)
+            {
+                return Err((
+                    "parts".into(),
+                    format!("part `{part}` needs part `{needed}`, which is not listed"),
+                ));
+            }
+        }
+        if self.has(Part::Optics) && self.surface.is_none() {
+            return Err((
+                "surface".into(),
+                "part `optics` needs a `surface` section".into(),
+            ));
+        }
+        if self.integrator.substeps == 0 {
+            return Err(("integrator.substeps".into(), "must be at least 1".into()));
+        }
+        self.mirror.validate()?;
+        if self.has(Part::CrossTalk) {
+            self.cross_talk.validate()?;
+        }
+        if self.has(Part::Amplifier) {
+            self.amplifier.validate()?;
+        }
+        self.power_limit.validate()?;
+        if self.has(Part::AngleSensorNoise) {
+            self.angle_sensor.validate()?;
+        }
+        Ok(())
+    }
+}
