@@ -15,7 +15,9 @@
 //!   (reconstructed with the paper's model);
 //! - `{lissajous,raster}_{0.05,0.1,0.25,0.5,1}s.png`: the image after that much scan time,
 //!   missing cells magenta (Fig. 6);
-//! - `timing.json`: wall time of each stage (a benchmark figure, not a test).
+//! - `timing.json`: wall time of each stage (a benchmark figure, not a test);
+//! - `{lissajous,raster}_samples.csv`: the simulated recordings, ready for
+//!   `scanhil reconstruct`.
 
 #[path = "../tests/imaging_support/mod.rs"]
 mod imaging_support;
@@ -31,6 +33,7 @@ use scanhil_controller::imaging::progressive::{
     simulate_samples,
 };
 use scanhil_controller::imaging::reconstruct::reconstruct;
+use scanhil_controller::imaging::recording::write_recording_csv;
 use scanhil_geometry::{GeometryModel, Scanner};
 
 const SAMPLE_RATE_HZ: f64 = 20_000.0;
@@ -60,11 +63,14 @@ fn main() -> anyhow::Result<()> {
     let mut samples = Vec::new();
     for (name, angles) in trajectories {
         let start = Instant::now();
-        samples.push((name, simulate_samples(angles, &scene, SAMPLE_RATE_HZ, 1.0)));
+        let s = simulate_samples(angles, &scene, SAMPLE_RATE_HZ, 1.0);
         timing.insert(
             format!("simulate_{name}_s"),
             start.elapsed().as_secs_f64().into(),
         );
+        let file = std::fs::File::create(out.join(format!("{name}_samples.csv")))?;
+        write_recording_csv(std::io::BufWriter::new(file), &s)?;
+        samples.push((name, s));
     }
     let mut comparisons = Vec::new();
     for model in [GeometryModel::SmallAngle, GeometryModel::ExactReflection] {
