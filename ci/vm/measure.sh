@@ -43,7 +43,9 @@ cat <<EOF
   "ready_s": $(printf '%s\n' "${ready[@]}" | median),
   "guest_uptime_s": $(printf '%s\n' "${uptime[@]}" | median),
   "warm_runs": $warm_runs,
-  "cpus": $(nproc),
+  "host_cpus": $(nproc),
+  "vm_cpus": ${SCANHIL_VM_CPUS:-1},
+  "host_load_1min": $(cut -d' ' -f1 /proc/loadavg),
   "accelerator": "$(sed -n 's/.*VM ran [0-9.]* s, \([a-z]*\)).*/\1/p' <<<"$log")"
 }
 EOF
