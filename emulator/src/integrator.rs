@@ -11,7 +11,9 @@
 //!   (4 and 1 evaluations per sub-step).
 //!
 //! Stability: the per-sub-step state map (`Phi`, or the stability polynomial `R(hA)` of the
-//! explicit methods) must have spectral radius at most 1; otherwise [`Stepper::new`] refuses
+//! explicit methods) must have spectral radius `rho` with `rho^substeps <= 1 + 1e-12`: no
+//! mode may grow by more than rounding over one control period (a marginally stable mode,
+//! as in an undamped mirror under the exact map, passes). Otherwise [`Stepper::new`] refuses
 //! with the method, the step and the offending eigenvalue.
 
 use std::fmt;
@@ -21,8 +23,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::drive_model::{DriveModel, INPUTS};
 
-/// How far above 1 the spectral radius may lie (rounding of a marginally stable map).
-const RADIUS_TOLERANCE: f64 = 1e-12;
+/// How far above 1 the growth per control period may lie (rounding of a marginally stable map).
+const GROWTH_TOLERANCE: f64 = 1e-12;
 /// The most sub-steps [`StabilityError::stable_substeps`] searches for.
 const MAX_SUGGESTED_SUBSTEPS: u32 = 1 << 20;
 
@@ -127,8 +129,9 @@ impl Default for IntegratorConfig {
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 #[error(
     "integrator {method} with step {step_s:e} s ({substeps} sub-step(s) per period) is unstable \
-     on this plant: the step map has eigenvalue {re:+.6e}{im:+.6e}i of magnitude {radius:.9} > 1; \
-     use exact_zoh or trapezoid{suggestion}",
+     on this plant: the sub-step map has eigenvalue {re:+.6e}{im:+.6e}i of magnitude {radius:.15}, \
+     a growth of {growth:.15} per control period (> 1); use exact_zoh or trapezoid{suggestion}",
+    growth = radius.powf(f64::from(*substeps)),
     re = eigenvalue.0,
     im = eigenvalue.1,
     suggestion = match stable_substeps {
@@ -143,7 +146,8 @@ pub struct StabilityError {
     pub step_s: f64,
     /// Sub-steps per period asked for.
     pub substeps: u32,
-    /// The offending eigenvalue of the per-sub-step map, (re, im).
+    /// The offending eigenvalue of the per-sub-step map, (re, im); the one of largest
+    /// magnitude.
     pub eigenvalue: (f64, f64),
     /// Its magnitude (the spectral radius).
     pub radius: f64,
@@ -189,13 +193,15 @@ impl Stepper {
     ) -> Result<Stepper, StabilityError> {
         let substeps = config.substeps.max(1);
         let h_s = period_s / f64::from(substeps);
-        check_stability(model, h_s, config.method).map_err(|(re, im, radius)| StabilityError {
-            method: config.method,
-            step_s: h_s,
-            substeps,
-            eigenvalue: (re, im),
-            radius,
-            stable_substeps: smallest_stable_substeps(model, period_s, config.method),
+        check_stability(model, period_s, substeps, config.method).map_err(|(re, im, radius)| {
+            StabilityError {
+                method: config.method,
+                step_s: h_s,
+                substeps,
+                eigenvalue: (re, im),
+                radius,
+                stable_substeps: smallest_stable_substeps(model, period_s, config.method),
+            }
         })?;
         let (state_map, input_map) = match config.method {
             Method::ExactZoh | Method::Trapezoid => config.method.step_maps(model, h_s),
@@ -290,15 +296,18 @@ fn row_major(m: &DMatrix<f64>) -> Vec<f64> {
     m.transpose().as_slice().to_vec()
 }
 
-/// `Err((re, im, radius))` when the per-sub-step map of `method` is unstable for step `h_s`.
+/// `Err((re, im, radius))` (the per-sub-step map's dominant eigenvalue) when `method` with
+/// `substeps` sub-steps per `period_s` lets a mode grow over one period.
 pub fn check_stability(
     model: &DriveModel,
-    h_s: f64,
+    period_s: f64,
+    substeps: u32,
     method: Method,
 ) -> Result<(), (f64, f64, f64)> {
-    let (phi, _) = method.step_maps(model, h_s);
+    let (phi, _) = method.step_maps(model, period_s / f64::from(substeps));
     let (re, im, radius) = spectral_radius(&phi);
-    if radius.is_finite() && radius <= 1.0 + RADIUS_TOLERANCE {
+    let growth = radius.powf(f64::from(substeps));
+    if growth.is_finite() && growth <= 1.0 + GROWTH_TOLERANCE {
         Ok(())
     } else {
         Err((re, im, radius))
@@ -308,7 +317,7 @@ pub fn check_stability(
 fn smallest_stable_substeps(model: &DriveModel, period_s: f64, method: Method) -> Option<u32> {
     let mut n = 1u32;
     while n <= MAX_SUGGESTED_SUBSTEPS {
-        if check_stability(model, period_s / f64::from(n), method).is_ok() {
+        if check_stability(model, period_s, n, method).is_ok() {
             return Some(n);
         }
         n *= 2;
