@@ -111,7 +111,7 @@ forwarded_environment() {
     local name
     for name in RUST_BACKTRACE RUST_LIB_BACKTRACE RUST_LOG RUST_TEST_THREADS RUST_TEST_NOCAPTURE \
         RUST_MIN_STACK NO_COLOR CLICOLOR CLICOLOR_FORCE TZ LANG LC_ALL ${SCANHIL_VM_ENV:-} \
-        $(compgen -v SCANHIL_ | grep -v '^SCANHIL_VM_' || true); do
+        $(compgen -e SCANHIL_ | grep -v '^SCANHIL_VM_' || true); do
         [[ -v $name ]] && printf '%s=%s\0' "$name" "${!name}"
     done
     return 0
@@ -147,8 +147,9 @@ write_job() {
     printf '%s\0' "$@" >"$job/argv"
     local cwd
     cwd=$(pwd -P)
-    local folders=() folder inside=0
-    mapfile -t folders < <(shared_folders)
+    local folders=() folder inside=0 listed
+    listed=$(shared_folders)
+    mapfile -t folders <<<"$listed"
     for folder in "${folders[@]}"; do
         [[ $cwd == "$folder" || $cwd == "$folder"/* ]] && inside=1
     done
