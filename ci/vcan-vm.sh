@@ -15,6 +15,8 @@
 # Environment (all optional):
 #   SCANHIL_VM_TIMEOUT=60       hard limit in seconds for the VM run (boot + command)
 #   SCANHIL_VM_BOOT_TIMEOUT=30  limit in seconds until the guest is set up and the command starts
+#   SCANHIL_VM_FETCH_TIMEOUT=300  limit in seconds for each apt-get update / download, and for
+#                               waiting on another run that holds the cache's lock
 #   SCANHIL_VM_CACHE=DIR        cache of packages and images (${XDG_CACHE_HOME:-~/.cache}/scanhil-vm)
 #   SCANHIL_VM_REFRESH=1        re-resolve and re-fetch packages even when cached
 #   SCANHIL_VM_ACCEL=auto       tcg, kvm, or auto (kvm where the CPU has vmx/svm, /dev/kvm is
@@ -43,6 +45,7 @@ readonly VM_CACHE=${SCANHIL_VM_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/scanhil-vm
 readonly VM_REFRESH=${SCANHIL_VM_REFRESH:-0}
 readonly VM_TIMEOUT_S=${SCANHIL_VM_TIMEOUT:-60}
 readonly VM_BOOT_TIMEOUT_S=${SCANHIL_VM_BOOT_TIMEOUT:-30}
+readonly VM_FETCH_TIMEOUT_S=${SCANHIL_VM_FETCH_TIMEOUT:-300}
 readonly VM_ACCEL=${SCANHIL_VM_ACCEL:-auto}
 readonly VM_CPUS=${SCANHIL_VM_CPUS:-1}
 readonly VM_MEMORY_MB=${SCANHIL_VM_MEMORY_MB:-512}
@@ -73,10 +76,12 @@ usage() {
 check_settings() {
     local setting value
     for setting in SCANHIL_VM_TIMEOUT:$VM_TIMEOUT_S SCANHIL_VM_BOOT_TIMEOUT:$VM_BOOT_TIMEOUT_S \
+        SCANHIL_VM_FETCH_TIMEOUT:$VM_FETCH_TIMEOUT_S \
         SCANHIL_VM_CPUS:$VM_CPUS SCANHIL_VM_MEMORY_MB:$VM_MEMORY_MB; do
         value=${setting#*:}
         [[ $value =~ ^[1-9][0-9]*$ ]] || die "${setting%%:*} must be a positive whole number, not '$value'"
     done
+    command -v timeout >/dev/null 2>&1 || die "the host has no timeout (coreutils)"
     case $VM_ACCEL in auto | tcg | kvm) ;; *) die "SCANHIL_VM_ACCEL must be auto, tcg or kvm, not '$VM_ACCEL'" ;; esac
     local interface
     for interface in $VM_VCAN; do
@@ -90,7 +95,8 @@ prepare() {
     mkdir -p "$VM_CACHE" || die "cannot create the cache folder $VM_CACHE"
     command -v flock >/dev/null 2>&1 || die "the host has no flock (util-linux)"
     exec {lock_fd}>"$VM_CACHE/.lock"
-    flock "$lock_fd"
+    flock -w "$VM_FETCH_TIMEOUT_S" "$lock_fd" ||
+        die "another run held the cache lock $VM_CACHE/.lock for over ${VM_FETCH_TIMEOUT_S} s (SCANHIL_VM_FETCH_TIMEOUT)"
     # Scratch folders of an interrupted or failed earlier run (none is in use: we hold the lock).
     rm -rf "$VM_CACHE"/.kernel.* "$VM_CACHE"/.userland.* "$VM_CACHE"/.qemu.* "$VM_CACHE"/.initramfs.* \
         "$VM_CACHE"/debs/.download.*
@@ -366,7 +372,6 @@ main() {
             exit 0 ;;
     esac
     check_settings
-    command -v timeout >/dev/null 2>&1 || die "the host has no timeout (coreutils)"
     COMMAND_TEXT=$*
     prepare
     RUN_DIR=$(mktemp -d "${TMPDIR:-/tmp}/scanhil-vm.XXXXXX")

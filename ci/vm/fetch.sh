@@ -8,7 +8,9 @@
 # works offline); delete the cache folder (or set SCANHIL_VM_REFRESH=1) to pick up newer
 # packages.
 #
-# Needs from the caller: VM_CACHE, VM_REFRESH, and the functions say and die.
+# Network steps (apt-get update, apt-get download) are each limited to VM_FETCH_TIMEOUT_S.
+#
+# Needs from the caller: VM_CACHE, VM_REFRESH, VM_FETCH_TIMEOUT_S, and the functions say and die.
 
 # The package whose dependency names the current kernel image package.
 readonly KERNEL_METAPACKAGE=linux-image-amd64
@@ -45,7 +47,7 @@ refresh_apt_lists() {
             die "$1, and apt-get update needs root: run 'sudo apt-get update' once"
         runner=(sudo -n)
     fi
-    "${runner[@]}" apt-get -q update >"$VM_CACHE/apt-update.log" 2>&1 ||
+    timeout "$VM_FETCH_TIMEOUT_S" "${runner[@]}" apt-get -q update >"$VM_CACHE/apt-update.log" 2>&1 ||
         die "apt-get update failed (log: $VM_CACHE/apt-update.log): $(tail -n 3 "$VM_CACHE/apt-update.log")"
     APT_LISTS_REFRESHED=1
 }
@@ -97,7 +99,7 @@ download_into() {
     local scratch
     scratch=$(mktemp -d "$target/.download.XXXXXX")
     # apt-get download as root warns that it runs unsandboxed; the scratch folder is ours.
-    if (cd "$scratch" && apt-get -q download "$@") >"$target/download.log" 2>&1; then
+    if (cd "$scratch" && timeout "$VM_FETCH_TIMEOUT_S" apt-get -q download "$@") >"$target/download.log" 2>&1; then
         mv "$scratch"/*.deb "$target"/
         rm -rf "$scratch"
     else
