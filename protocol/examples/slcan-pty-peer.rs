@@ -95,9 +95,7 @@ fn run() -> Result<bool, String> {
                     closed = received >= expect;
                     SlcanMessage::Ack.encode()
                 }
-                Ok(SlcanMessage::Bitrate(_) | SlcanMessage::Ack) => {
-                    SlcanMessage::Ack.encode()
-                }
+                Ok(SlcanMessage::Bitrate(_) | SlcanMessage::Ack) => SlcanMessage::Ack.encode(),
                 Ok(_) => SlcanMessage::Nack.encode(),
                 Err(err) => {
                     malformed += 1;

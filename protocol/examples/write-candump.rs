@@ -74,15 +74,18 @@ fn messages() -> Vec<(u32, Message)> {
             ));
             continue;
         }
-        out.push((k, Message::CoilCommand(CoilCommand::from_amps(seq, currents))));
+        out.push((
+            k,
+            Message::CoilCommand(CoilCommand::from_amps(seq, currents)),
+        ));
         out.push((k, Message::Step { step: k }));
-        out.push((k, Message::AngleReading(AngleReading::from_rad(seq, angles))));
+        out.push((
+            k,
+            Message::AngleReading(AngleReading::from_rad(seq, angles)),
+        ));
         out.push((k, Message::Distance(distance)));
     }
-    out.push((
-        PERIODS,
-        Message::Sync { step: PERIODS },
-    ));
+    out.push((PERIODS, Message::Sync { step: PERIODS }));
     out.push((
         PERIODS,
         Message::Fault(Fault {

@@ -293,7 +293,7 @@ pub fn hex_upper(bytes: &[u8]) -> String {
 /// Parses an even-length hex string (either case) into bytes; `None` on any other input.
 #[must_use]
 pub fn parse_hex(text: &[u8]) -> Option<Vec<u8>> {
-    if text.len() % 2 != 0 {
+    if !text.len().is_multiple_of(2) {
         return None;
     }
     text.chunks_exact(2)

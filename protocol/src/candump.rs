@@ -78,7 +78,7 @@ impl fmt::Display for LogEntry {
             FrameFormat::Remote if frame.dlc() == 0 => write!(f, "#R"),
             FrameFormat::Remote => write!(f, "#R{}", frame.dlc()),
             FrameFormat::Fd { brs, esi } => {
-                let flags = u8::from(brs) * FD_FLAG_BRS | u8::from(esi) * FD_FLAG_ESI;
+                let flags = (u8::from(brs) * FD_FLAG_BRS) | (u8::from(esi) * FD_FLAG_ESI);
                 write!(f, "##{flags:X}{}", hex_upper(frame.data()))
             }
         }
@@ -224,7 +224,13 @@ mod tests {
     #[test]
     fn nine_decimals_and_lower_case_are_read() {
         let entry = parse_line("(12.123456789) vcan0 1ab#deadbeef").unwrap();
-        assert_eq!(entry.timestamp, Timestamp { secs: 12, nanos: 123_456_789 });
+        assert_eq!(
+            entry.timestamp,
+            Timestamp {
+                secs: 12,
+                nanos: 123_456_789
+            }
+        );
         assert_eq!(entry.to_string(), "(12.123456) vcan0 1AB#DEADBEEF");
     }
 

@@ -115,7 +115,9 @@ mod tests {
     fn scaled_limits_print_without_rounding_noise() {
         let text = render();
         assert!(
-            text.contains(" SG_ CurrentA : 16|24@1- (0.000001,0.000000) [-8.388608|8.388607] \"A\""),
+            text.contains(
+                " SG_ CurrentA : 16|24@1- (0.000001,0.000000) [-8.388608|8.388607] \"A\""
+            ),
             "{text}"
         );
         assert!(text.contains(" SG_ Seq : 0|16@1+ (1,0) [0|65535] \"\""));

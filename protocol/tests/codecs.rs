@@ -167,11 +167,10 @@ proptest! {
         let mut decoder = SlcanDecoder::new();
         let events = decoder.push(&bytes);
         let _ = decoder.finish();
-        for event in events {
-            // Whatever it accepted, it can write back.
-            if let Ok(message) = event {
-                let _ = message.encode();
-            }
+        // Whatever it accepted, it writes back to the same message.
+        for message in events.into_iter().flatten() {
+            let again = SlcanDecoder::new().push(message.encode().as_bytes());
+            prop_assert_eq!(again, vec![Ok(message)]);
         }
     }
 

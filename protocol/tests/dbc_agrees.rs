@@ -56,8 +56,14 @@ fn can_dbc_reads_the_same_messages_and_signals() {
             assert_eq!(signal.value_type, value_type, "{at}");
             assert_eq!(signal.factor, want.scale, "{at}");
             assert_eq!(signal.offset, want.offset, "{at}");
-            assert!((numeric(signal.min) - want.min()).abs() <= want.scale * 1e-6, "{at}");
-            assert!((numeric(signal.max) - want.max()).abs() <= want.scale * 1e-6, "{at}");
+            assert!(
+                (numeric(signal.min) - want.min()).abs() <= want.scale * 1e-6,
+                "{at}"
+            );
+            assert!(
+                (numeric(signal.max) - want.max()).abs() <= want.scale * 1e-6,
+                "{at}"
+            );
             assert_eq!(signal.unit, want.unit, "{at}");
         }
     }

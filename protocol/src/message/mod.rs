@@ -645,7 +645,8 @@ fn raw_fields(frame: &CanFrame) -> Result<(&'static MessageSpec, Vec<i64>), Mess
         CanId::Extended(_) => None,
     }
     .ok_or(MessageError::UnknownId(frame.id()))?;
-    let shape = |len: usize, fd: bool| format!("{len} bytes {}", if fd { "FD" } else { "classical" });
+    let shape =
+        |len: usize, fd: bool| format!("{len} bytes {}", if fd { "FD" } else { "classical" });
     let format_ok = match frame.format() {
         FrameFormat::Classical => !spec.fd,
         FrameFormat::Fd { .. } => spec.fd,
@@ -786,10 +787,22 @@ mod tests {
         });
         assert!(matches!(
             too_big.encode(),
-            Err(MessageError::OutOfRange { signal: "CurrentA", .. })
+            Err(MessageError::OutOfRange {
+                signal: "CurrentA",
+                ..
+            })
         ));
-        let saturated = CoilCommand::from_amps(0, ActuatorPair { a: 100.0, b: f64::NAN });
-        assert_eq!((saturated.current_a_ua, saturated.current_b_ua), (I24_MAX, 0));
+        let saturated = CoilCommand::from_amps(
+            0,
+            ActuatorPair {
+                a: 100.0,
+                b: f64::NAN,
+            },
+        );
+        assert_eq!(
+            (saturated.current_a_ua, saturated.current_b_ua),
+            (I24_MAX, 0)
+        );
         // Status frame of the sensor sent on the fsm's id.
         let id = CanId::standard(ids::STATUS_FSM).unwrap();
         let frame = CanFrame::new(id, &[node::SENSOR, 2, 0, 0, 0, 0, 0, 0]).unwrap();
@@ -800,7 +813,10 @@ mod tests {
         let frame = CanFrame::new(id, &[node::FSM, 9, 0, 0, 0, 0, 0, 0]).unwrap();
         assert!(matches!(
             Message::decode(&frame),
-            Err(MessageError::UndefinedCode { signal: "State", .. })
+            Err(MessageError::UndefinedCode {
+                signal: "State",
+                ..
+            })
         ));
         let short = CanFrame::new(CanId::standard(ids::COIL_COMMAND).unwrap(), &[0; 7]).unwrap();
         assert!(matches!(

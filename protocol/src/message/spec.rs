@@ -150,15 +150,7 @@ const fn with_choices(spec: SignalSpec, choices: &'static [(u64, &'static str)])
 }
 
 /// Sequence counter (command/reading period index modulo 2^16), shared by the loop messages.
-const SEQ: SignalSpec = signal(
-    "Seq",
-    0,
-    16,
-    false,
-    1.0,
-    "",
-    "Period index k modulo 2^16",
-);
+const SEQ: SignalSpec = signal("Seq", 0, 16, false, 1.0, "", "Period index k modulo 2^16");
 const CURRENT_A: SignalSpec = signal(
     "CurrentA",
     16,
@@ -271,15 +263,7 @@ pub const FAULT_KIND_CHOICES: &[(u64, &str)] = &[
     (4, "link_timeout"),
 ];
 
-const STEP_ONLY: &[SignalSpec] = &[signal(
-    "Step",
-    0,
-    32,
-    false,
-    1.0,
-    "",
-    "Period index k",
-)];
+const STEP_ONLY: &[SignalSpec] = &[signal("Step", 0, 32, false, 1.0, "", "Period index k")];
 const COIL_COMMAND: &[SignalSpec] = &[SEQ, CURRENT_A, CURRENT_B];
 const ANGLE_READING: &[SignalSpec] = &[SEQ, ALPHA, BETA];
 const DISTANCE: &[SignalSpec] = &distance_signals(0);
@@ -555,7 +539,12 @@ mod tests {
     #[test]
     fn ids_are_unique_ascending_and_11_bit() {
         for pair in MESSAGES.windows(2) {
-            assert!(pair[0].id < pair[1].id, "{} / {}", pair[0].name, pair[1].name);
+            assert!(
+                pair[0].id < pair[1].id,
+                "{} / {}",
+                pair[0].name,
+                pair[1].name
+            );
         }
         assert!(MESSAGES.iter().all(|m| m.id <= crate::can::STANDARD_ID_MAX));
     }
@@ -568,6 +557,9 @@ mod tests {
         assert_eq!(payload, [0xEF, 0xBE, 0xFB, 0xFF, 0xFF, 0, 0, 0]);
         assert_eq!(unpack(&spec, &payload), -5);
         assert_eq!(unpack(&SEQ, &payload), 0xBEEF);
-        assert_eq!((spec.raw_min(), spec.raw_max()), (-(1 << 23), (1 << 23) - 1));
+        assert_eq!(
+            (spec.raw_min(), spec.raw_max()),
+            (-(1 << 23), (1 << 23) - 1)
+        );
     }
 }
