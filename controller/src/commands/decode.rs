@@ -311,3 +311,74 @@ fn decode_ild(
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report() -> Report {
+        Report {
+            source: "test".to_owned(),
+            malformed: 0,
+        }
+    }
+
+    fn lines(out: &[u8]) -> Vec<Value> {
+        String::from_utf8_lossy(out)
+            .lines()
+            .map(|l| serde_json::from_str(l).unwrap())
+            .collect()
+    }
+
+    #[test]
+    fn candump_lines_decode_in_order_and_bad_ones_are_counted() {
+        let log = "(1.500000) vcan0 100#02016CE316FFFFFF\n\
+                   (1.600000) vcan0 555#00\n\
+                   garbage\n\
+                   (1.700000) vcan0 021#E8030000\n";
+        let mut out = Vec::new();
+        let mut report = report();
+        decode_candump(log.as_bytes(), &mut out, &mut report).unwrap();
+        let text = String::from_utf8_lossy(&out).into_owned();
+        assert!(
+            text.starts_with(r#"{"t":1.5,"id":256,"message":"CoilCommand","signals":{"Seq":258,"CurrentA":1.500012"#),
+            "{text}"
+        );
+        let decoded = lines(&out);
+        assert_eq!(decoded.len(), 2, "unknown id and garbage print nothing");
+        assert_eq!(decoded[1]["signals"]["Step"], 1000);
+        assert_eq!(report.malformed, 1, "the unknown id is not malformed");
+    }
+
+    #[test]
+    fn slcan_frames_decode_with_null_time_after_garbage() {
+        let mut out = Vec::new();
+        let mut report = report();
+        decode_slcan(&b"xx\rt0214E8030000\rt02"[..], &mut out, &mut report).unwrap();
+        let decoded = lines(&out);
+        assert_eq!(decoded.len(), 1);
+        assert_eq!(decoded[0]["t"], Value::Null);
+        assert_eq!(decoded[0]["message"], "Step");
+        assert_eq!(report.malformed, 2, "the garbage line and the cut-off line");
+    }
+
+    #[test]
+    fn ild_values_give_mm_or_error_and_gaps_are_counted() {
+        let range = MeasuringRange::ILD2300_100;
+        let mut bytes =
+            scanhil_protocol::ild::encode_cycle(&[range.mm_to_digital(120.0).unwrap(), 5]);
+        bytes.push(0x80); // a stray H byte
+        bytes.extend(scanhil_protocol::ild::encode_cycle(&[262_076]));
+        let mut out = Vec::new();
+        let mut report = report();
+        decode_ild(&bytes[..], range, &mut out, &mut report).unwrap();
+        let decoded = lines(&out);
+        assert_eq!(decoded.len(), 3);
+        let mm = decoded[0]["mm"].as_f64().unwrap();
+        assert!((mm - 120.0).abs() <= range.mm_per_digit(), "{mm}");
+        assert_eq!(decoded[1]["index"], 1);
+        assert!(decoded[1].get("mm").is_none());
+        assert_eq!(decoded[2]["error"], "no_peak");
+        assert_eq!(report.malformed, 1);
+    }
+}
