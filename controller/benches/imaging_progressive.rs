@@ -140,16 +140,19 @@ fn main() -> anyhow::Result<()> {
             c.grid.ny,
             c.grid.pitch_mm
         );
-        println!("  t_s   trajectory  coverage  covered_rms_mm  image_rms_mm  image_max_mm");
+        println!(
+            "  t_s   trajectory  coverage  covered_rms_mm  covered_median_mm  image_rms_mm  image_max_mm"
+        );
         for &t in &SNAPSHOTS_S {
             for run in &c.runs {
                 if let Some(p) = run.points.iter().find(|p| (p.t_s - t).abs() < 1e-9) {
                     println!(
-                        "  {:<5} {:<11} {:>8.3}  {:>14.4}  {:>12.4}  {:>12.3}",
+                        "  {:<5} {:<11} {:>8.3}  {:>14.4}  {:>17.5}  {:>12.4}  {:>12.3}",
                         t,
                         run.name,
                         p.coverage_fraction,
                         p.covered_rms_mm.unwrap_or(f64::NAN),
+                        p.covered_median_abs_mm.unwrap_or(f64::NAN),
                         p.image_rms_mm.unwrap_or(f64::NAN),
                         p.image_max_mm.unwrap_or(f64::NAN)
                     );

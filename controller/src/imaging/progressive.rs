@@ -4,9 +4,10 @@
 //! At each checkpoint time `t` the map holds every sample taken up to `t`, gridded with the
 //! chosen [`GridMethod`] (incrementally: one pass over the samples for all checkpoints).
 //! Against the truth it is scored two ways:
-//! - **covered cells**: RMS and max of `map - truth` over the cells some sample reached, with
-//!   the fraction of cells covered; this is what the scan has measured so far;
-//! - **whole image**: RMS and max over every cell after filling the missing ones with the
+//! - **covered cells**: RMS, max and median absolute value of `map - truth` over the cells
+//!   some sample reached, with the fraction of cells covered; this is what the scan has
+//!   measured so far;
+//! - **whole image**: the same over every cell after filling the missing ones with the
 //!   chosen [`FillMethod`]; this is the preview a user sees (a Lissajous scan covers the whole
 //!   field coarsely early, a raster scan line by line).
 //!
@@ -139,10 +140,15 @@ pub struct ProgressivePoint {
     pub covered_rms_mm: Option<f64>,
     /// Largest error over the measured cells, mm.
     pub covered_max_mm: Option<f64>,
+    /// Median absolute error over the measured cells, mm: the flat areas' accuracy, which
+    /// the RMS hides behind the few cells that straddle a step.
+    pub covered_median_abs_mm: Option<f64>,
     /// RMS error over all cells after the fill, mm.
     pub image_rms_mm: Option<f64>,
     /// Largest error over all cells after the fill, mm.
     pub image_max_mm: Option<f64>,
+    /// Median absolute error over all cells after the fill, mm.
+    pub image_median_abs_mm: Option<f64>,
 }
 
 /// Scores the map after each checkpoint against `truth` (see the module doc).
@@ -166,29 +172,44 @@ pub fn progressive_errors(
             .filter_map(|i| Some(map.heights_mm[i]? - truth_at[i]?))
             .collect();
         if errors.is_empty() {
-            return (None, None);
+            return ErrorFigures::default();
         }
         let rms = (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt();
-        let max = errors.iter().fold(0.0f64, |m, e| m.max(e.abs()));
-        (Some(rms), Some(max))
+        let mut abs: Vec<f64> = errors.iter().map(|e| e.abs()).collect();
+        abs.sort_by(f64::total_cmp);
+        ErrorFigures {
+            rms: Some(rms),
+            max: abs.last().copied(),
+            median_abs: Some(abs[abs.len() / 2]),
+        }
     };
     progressive_maps(points, spec, grid, checkpoints_s)
         .into_iter()
         .map(|(t_s, mut map)| {
-            let (covered_rms_mm, covered_max_mm) = score(&map, true);
+            let covered = score(&map, true);
             let coverage_fraction = map.coverage_fraction();
             fill_missing(&mut map, fill);
-            let (image_rms_mm, image_max_mm) = score(&map, false);
+            let image = score(&map, false);
             ProgressivePoint {
                 t_s,
                 coverage_fraction,
-                covered_rms_mm,
-                covered_max_mm,
-                image_rms_mm,
-                image_max_mm,
+                covered_rms_mm: covered.rms,
+                covered_max_mm: covered.max,
+                covered_median_abs_mm: covered.median_abs,
+                image_rms_mm: image.rms,
+                image_max_mm: image.max,
+                image_median_abs_mm: image.median_abs,
             }
         })
         .collect()
+}
+
+/// RMS, max and median absolute error of a set of cells.
+#[derive(Debug, Clone, Copy, Default)]
+struct ErrorFigures {
+    rms: Option<f64>,
+    max: Option<f64>,
+    median_abs: Option<f64>,
 }
 
 /// One trajectory's error against scan time.
@@ -241,8 +262,8 @@ impl ProgressiveComparison {
         }
     }
 
-    /// Draws three panels against scan time: whole-image RMS error, covered-cell RMS error
-    /// (both log scale, mm) and coverage; one line per run.
+    /// Draws four panels against scan time: whole-image RMS error, covered-cell RMS and
+    /// median absolute error (log scale, mm) and coverage; one line per run.
     pub fn draw(&self, path: &Path) -> Result<(), ReportError> {
         let series = |pick: &dyn Fn(&ProgressivePoint) -> Option<f64>| -> Vec<Series> {
             self.runs
@@ -283,6 +304,12 @@ impl ProgressiveComparison {
                     "RMS error (mm)",
                     Axis::Log,
                     series(&|p| p.covered_rms_mm),
+                ),
+                chart(
+                    "measured cells: median absolute error",
+                    "median |error| (mm)",
+                    Axis::Log,
+                    series(&|p| p.covered_median_abs_mm),
                 ),
                 chart(
                     "coverage",
