@@ -1,0 +1,145 @@
+//! The `step` and `precision` commands as a user runs them: output, JSON shape, and errors.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn emulator(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_scanhil-emulator"))
+        .args(args)
+        .output()
+        .expect("run scanhil-emulator")
+}
+
+fn fixture(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fixtures/scenes")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+fn temp_path(name: &str) -> PathBuf {
+    std::env::temp_dir().join(format!(
+        "scanhil-emulator-cli-{}-{name}",
+        std::process::id()
+    ))
+}
+
+#[test]
+fn step_json_reports_parts_and_the_delayed_response_on_the_chosen_axis() {
+    let scene = fixture("loop-fast.json");
+    let out = emulator(&[
+        "step",
+        "--scene",
+        &scene,
+        "--axis",
+        "x",
+        "--amplitude",
+        "0.2",
+        "--samples",
+        "50",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["axis"], "beta");
+    assert_eq!(
+        report["active_parts"],
+        serde_json::json!(["axes", "cross_talk"])
+    );
+    let samples = report["samples"].as_array().unwrap();
+    assert_eq!(samples.len(), 50);
+    assert_eq!(samples[0]["true_angles_rad"]["beta"], 0.0);
+    let beta = samples[49]["true_angles_rad"]["beta"].as_f64().unwrap();
+    let alpha = samples[49]["true_angles_rad"]["alpha"].as_f64().unwrap();
+    assert!(beta > 0.0);
+    // Cross-talk: the other axis moves about 20 dB less.
+    assert!(
+        (alpha / beta).abs() > 0.05 && (alpha / beta).abs() < 0.2,
+        "{alpha} {beta}"
+    );
+}
+
+#[test]
+fn step_table_names_the_active_parts() {
+    let out = emulator(&[
+        "step",
+        "--scene",
+        &fixture("step-alpha.json"),
+        "--samples",
+        "3",
+    ]);
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("active parts: [axes]"), "{text}");
+    assert_eq!(text.lines().count(), 2 + 3);
+}
+
+#[test]
+fn bad_axis_and_unstable_integrator_fail_with_a_clear_message() {
+    let out = emulator(&[
+        "step",
+        "--scene",
+        &fixture("step-alpha.json"),
+        "--axis",
+        "z",
+    ]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("alpha|beta"));
+
+    let scene = temp_path("rk4.json");
+    std::fs::write(
+        &scene,
+        r#"{"name": "rk4", "parts": ["axes", "amplifier"], "integrator": {"method": "rk4"}}"#,
+    )
+    .unwrap();
+    let out = emulator(&["step", "--scene", scene.to_str().unwrap()]);
+    std::fs::remove_file(&scene).ok();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("rk4") && err.contains("5e-5") && err.contains("eigenvalue"),
+        "{err}"
+    );
+}
+
+#[test]
+fn precision_json_and_plot() {
+    let plot = temp_path("wp.svg");
+    let out = emulator(&[
+        "precision",
+        "--json",
+        "--duration-s",
+        "0.005",
+        "--max-substeps",
+        "4",
+        "--plot",
+        plot.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let rows = report["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 4 * 3);
+    let refused: Vec<_> = rows
+        .iter()
+        .filter(|r| !r["refused"].is_null())
+        .map(|r| {
+            (
+                r["method"].as_str().unwrap(),
+                r["substeps"].as_u64().unwrap(),
+            )
+        })
+        .collect();
+    assert_eq!(refused, [("rk4", 1), ("explicit_euler", 1)]);
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    std::fs::remove_file(&plot).ok();
+    assert!(svg.contains("<svg") && svg.contains("trapezoid"));
+}
