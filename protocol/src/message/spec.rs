@@ -66,10 +66,18 @@ impl SignalSpec {
         self.physical(self.raw_max())
     }
 
-    /// The physical value of a raw value.
+    /// The physical value of a raw value. A scale of `1/n` (such as 1e-6) divides by `n`,
+    /// so that `-12741` counts print as `-0.012741`, not with binary rounding noise.
     #[must_use]
     pub fn physical(&self, raw: i64) -> f64 {
-        raw as f64 * self.scale + self.offset
+        let inverse = 1.0 / self.scale;
+        let per_unit = inverse.round();
+        let scaled = if per_unit >= 1.0 && (inverse - per_unit).abs() < 1e-9 * per_unit {
+            raw as f64 / per_unit
+        } else {
+            raw as f64 * self.scale
+        };
+        scaled + self.offset
     }
 }
 
