@@ -12,12 +12,16 @@
 //! - [`dbc`]: the DBC file rendered from the message table (`protocol/scanhil.dbc`).
 //! - [`ild`]: the ILD 2300 sensor: RS422 values, the L/M/H byte stream, ASCII commands.
 //! - [`loop_timing`]: period jitter and overruns of a real-time loop, as both ends report them.
+//! - `link` (cargo feature `links`): the real transports: SocketCAN, SLCAN over a serial port or
+//!   pty, the ILD stream over a serial port or pty; link URIs, pty pairs, capture, watchdog.
 
 pub mod bus_load;
 pub mod can;
 pub mod candump;
 pub mod dbc;
 pub mod ild;
+#[cfg(feature = "links")]
+pub mod link;
 pub mod loop_timing;
 pub mod message;
 pub mod plant_units;

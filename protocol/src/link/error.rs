@@ -1,0 +1,89 @@
+//! What can go wrong on a link, always naming the link (its URI or path) and the OS error.
+
+use std::io;
+use std::time::Duration;
+
+use super::uri::UriError;
+
+/// An error on a link. Every variant names the link it happened on.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum LinkError {
+    /// The link URI did not parse.
+    #[error(transparent)]
+    Uri(#[from] UriError),
+    /// The transport could not be opened or configured.
+    #[error("cannot open {link}: {source}{hint}")]
+    Open {
+        /// The link's URI (or path).
+        link: String,
+        /// The OS error.
+        #[source]
+        source: io::Error,
+        /// A hint for the operator, empty or starting with "; ".
+        hint: String,
+    },
+    /// Reading or writing failed with an OS error.
+    #[error("{op} on {link} failed: {source}")]
+    Io {
+        /// The link's URI (or path).
+        link: String,
+        /// What was being done ("read", "write", ...).
+        op: &'static str,
+        /// The OS error.
+        #[source]
+        source: io::Error,
+    },
+    /// The other end closed the line (EOF, hang-up, adapter unplugged).
+    #[error("{link}: the other end hung up")]
+    HangUp {
+        /// The link's URI (or path).
+        link: String,
+    },
+    /// An SLCAN adapter (or device end) refused a command with BEL.
+    #[error("{link}: the SLCAN adapter refused `{command}` (replied BEL)")]
+    AdapterRefused {
+        /// The link's URI (or path).
+        link: String,
+        /// The command it refused, without the CR.
+        command: String,
+    },
+    /// A reply did not arrive in time.
+    #[error("{link}: no reply to `{command}` within {waited:?}")]
+    NoReply {
+        /// The link's URI (or path).
+        link: String,
+        /// The command that went unanswered.
+        command: String,
+        /// How long we waited.
+        waited: Duration,
+    },
+    /// The peer answered something this link cannot accept.
+    #[error("{link}: {detail}")]
+    Protocol {
+        /// The link's URI (or path).
+        link: String,
+        /// What was wrong.
+        detail: String,
+    },
+    /// A frame this transport cannot carry (e.g. CAN FD on a classical-only SLCAN line).
+    #[error("{link}: cannot send {detail}")]
+    Unsupported {
+        /// The link's URI (or path).
+        link: String,
+        /// What could not be sent.
+        detail: String,
+    },
+    /// Writing a capture (recording) failed.
+    #[error("writing the capture of {link} failed: {source}")]
+    Capture {
+        /// The link's URI (or path).
+        link: String,
+        /// The OS error.
+        #[source]
+        source: io::Error,
+    },
+}
+
+/// Result of a link operation.
+pub type LinkResult<T> = Result<T, LinkError>;

@@ -1,0 +1,401 @@
+//! [`IldLink`]: the ILD 2300's RS422 line, both ends. The host (controller) receives the
+//! measured-value stream as output cycles with their arrival times and exchanges ASCII
+//! commands; the device end (the emulated sensor) sends cycles and answers commands.
+//!
+//! The stream and the command replies share the line. While the host waits for a reply, the
+//! bytes go to the protocol's reply parser up to the `->` prompt (bytes with bit 7 set, which
+//! ASCII never has, are left out); the rest go to the stream decoder. Value bytes that arrive
+//! in the middle of a reply are lost to the stream, so hosts stop the output first
+//! (`OUTPUT NONE`), as real hosts do. A valid stream never contains `->` (two L bytes in a
+//! row), so values cannot end a reply early.
+
+use std::collections::VecDeque;
+use std::time::Duration;
+
+use tokio::time::Instant;
+
+use super::capture::ByteCapture;
+use super::error::{LinkError, LinkResult};
+use super::line::SerialLine;
+use super::pty::PtyPair;
+use super::role::Role;
+use super::uri::LinkUri;
+use crate::ild::IldValue;
+use crate::ild::command::{IldCommand, IldCommandError, IldReply, IldReplyParser};
+use crate::ild::stream::{FACTORY_BAUD, IldDecoder, IldEvent, encode_cycle};
+
+/// Bytes read from the line at a time.
+const READ_CHUNK: usize = 4096;
+/// The longest command line the device end accepts; longer lines are refused.
+pub const MAX_COMMAND_LINE: usize = 256;
+
+/// One output cycle as received: the distance (or error) and the extra values
+/// `OUTADD_RS422` enabled, in the sensor's order.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct IldCycle {
+    /// The cycle's first value: a distance or an error code.
+    pub distance: IldValue,
+    /// The further raw 18-bit values of the cycle (counter, timestamp, ...). Fewer than
+    /// configured when bytes were lost (the cycle is then counted as incomplete).
+    pub extras: Vec<u32>,
+    /// When the bytes that completed the cycle were read.
+    pub arrived: Instant,
+    /// Byte offset of the cycle's first byte in the received stream.
+    pub offset: u64,
+}
+
+/// A command line the device end received, with its text (for the reply's echo).
+#[derive(Debug, Clone, PartialEq)]
+pub struct IldRequest {
+    /// The line as received, without CR/LF.
+    pub line: String,
+    /// The parsed command, or why it is refused (answer with [`IldReply::refusal`]).
+    pub command: Result<IldCommand, IldCommandError>,
+}
+
+/// What went wrong on an ILD line so far.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct IldCounters {
+    /// Bytes the stream decoder skipped to resynchronise.
+    pub skipped_bytes: u64,
+    /// Times it lost sync.
+    pub sync_losses: u64,
+    /// Cycles delivered with fewer values than configured.
+    pub incomplete_cycles: u64,
+    /// Values dropped because the start of their cycle was lost.
+    pub orphan_values: u64,
+}
+
+/// One end of an ILD line.
+#[derive(Debug)]
+pub struct IldLink {
+    line: SerialLine,
+    role: Role,
+    decoder: IldDecoder,
+    values_per_cycle: usize,
+    partial: Option<IldCycle>,
+    cycles: VecDeque<IldCycle>,
+    echo: bool,
+    reply_parser: Option<IldReplyParser>,
+    replies: VecDeque<IldReply>,
+    command_line: Vec<u8>,
+    requests: VecDeque<IldRequest>,
+    pending_tx: Vec<u8>,
+    capture: Option<ByteCapture>,
+    counters: IldCounters,
+}
+
+impl IldLink {
+    /// Opens the serial port an `ild:` URI names, as `role`.
+    ///
+    /// # Errors
+    /// [`LinkError::Unsupported`] for a CAN URI; the port's open errors.
+    pub fn open(uri: &LinkUri, role: Role) -> LinkResult<IldLink> {
+        let name = uri.to_string();
+        let LinkUri::Ild { path, baud } = uri else {
+            return Err(LinkError::Unsupported {
+                link: name,
+                detail: "the ILD stream over a CAN link (use ild:PATH[@BAUD])".to_owned(),
+            });
+        };
+        Ok(Self::on_line(SerialLine::open(path, *baud, &name)?, role))
+    }
+
+    /// Runs the ILD line as `role` on the master end of `pair` (the peer opens the slave path).
+    /// The link is named `ild:<slave path>@691200`.
+    ///
+    /// # Errors
+    /// [`LinkError::Open`] when the master cannot be registered with tokio.
+    pub fn open_pty(pair: PtyPair, role: Role) -> LinkResult<IldLink> {
+        let name = LinkUri::Ild {
+            path: pair.slave_path().to_owned(),
+            baud: FACTORY_BAUD,
+        }
+        .to_string();
+        Ok(Self::on_line(SerialLine::from_pty(pair, &name)?, role))
+    }
+
+    fn on_line(line: SerialLine, role: Role) -> IldLink {
+        IldLink {
+            line,
+            role,
+            decoder: IldDecoder::new(),
+            values_per_cycle: 1,
+            partial: None,
+            cycles: VecDeque::new(),
+            echo: false,
+            reply_parser: None,
+            replies: VecDeque::new(),
+            command_line: Vec::new(),
+            requests: VecDeque::new(),
+            pending_tx: Vec::new(),
+            capture: None,
+            counters: IldCounters::default(),
+        }
+    }
+
+    /// The link's name (its URI).
+    #[must_use]
+    pub fn name(&self) -> &str {
+        self.line.name()
+    }
+
+    /// What went wrong so far.
+    #[must_use]
+    pub fn counters(&self) -> &IldCounters {
+        &self.counters
+    }
+
+    /// Host: values per output cycle, 1 + the number of `OUTADD_RS422` values (default 1).
+    /// A cycle is delivered as soon as it is complete.
+    pub fn set_values_per_cycle(&mut self, values: usize) {
+        self.values_per_cycle = values.max(1);
+    }
+
+    /// Host: whether the sensor repeats commands in its replies (`ECHO ON`); set
+    /// automatically by a successful `ECHO ON|OFF` command. Default off.
+    pub fn set_echo(&mut self, echo: bool) {
+        self.echo = echo;
+    }
+
+    /// Records the raw bytes received (and sent, if the capture has a writer for them).
+    pub fn set_capture(&mut self, capture: ByteCapture) {
+        self.capture = Some(capture);
+    }
+
+    /// Host: waits for the next output cycle. Cancel-safe.
+    ///
+    /// # Errors
+    /// Line errors ([`LinkError::HangUp`] when the sensor went away).
+    pub async fn recv_cycle(&mut self) -> LinkResult<IldCycle> {
+        loop {
+            if let Some(cycle) = self.cycles.pop_front() {
+                return Ok(cycle);
+            }
+            self.fill().await?;
+        }
+    }
+
+    /// Host: waits up to `timeout` for the next output cycle; `None` when none came.
+    ///
+    /// # Errors
+    /// As [`IldLink::recv_cycle`].
+    pub async fn recv_cycle_timeout(&mut self, timeout: Duration) -> LinkResult<Option<IldCycle>> {
+        match tokio::time::timeout(timeout, self.recv_cycle()).await {
+            Ok(result) => result.map(Some),
+            Err(_elapsed) => Ok(None),
+        }
+    }
+
+    /// Host: the next output cycle if one is already there, without waiting.
+    ///
+    /// # Errors
+    /// As [`IldLink::recv_cycle`].
+    pub fn try_recv_cycle(&mut self) -> LinkResult<Option<IldCycle>> {
+        if self.cycles.is_empty() {
+            self.drain_now()?;
+        }
+        Ok(self.cycles.pop_front())
+    }
+
+    /// Host: sends `command` and waits up to `timeout` for its reply (up to the `->` prompt).
+    /// A refused command is a reply with `error` set, not an `Err`.
+    ///
+    /// # Errors
+    /// [`LinkError::NoReply`] naming the command; line errors.
+    pub async fn command(
+        &mut self,
+        command: &IldCommand,
+        timeout: Duration,
+    ) -> LinkResult<IldReply> {
+        let text = command.encode();
+        self.replies.clear();
+        self.reply_parser = Some(IldReplyParser::new(self.echo));
+        self.send_bytes(text.as_bytes()).await?;
+        let exchange = async {
+            loop {
+                if let Some(reply) = self.replies.pop_front() {
+                    return Ok::<_, LinkError>(reply);
+                }
+                self.fill().await?;
+            }
+        };
+        let outcome = tokio::time::timeout(timeout, exchange).await;
+        self.reply_parser = None;
+        let reply = outcome.map_err(|_elapsed| LinkError::NoReply {
+            link: self.name().to_owned(),
+            command: text.trim_end().to_owned(),
+            waited: timeout,
+        })??;
+        if let (IldCommand::Echo(Some(on)), true) = (command, reply.is_ok()) {
+            self.echo = *on;
+        }
+        Ok(reply)
+    }
+
+    /// Device: sends one output cycle (raw 18-bit words, the distance first).
+    ///
+    /// # Errors
+    /// Line errors ([`LinkError::HangUp`] when the host went away).
+    pub async fn send_cycle(&mut self, raws: &[u32]) -> LinkResult<()> {
+        self.send_bytes(&encode_cycle(raws)).await
+    }
+
+    /// Device: waits for the next command line. Cancel-safe.
+    ///
+    /// # Errors
+    /// Line errors.
+    pub async fn recv_command(&mut self) -> LinkResult<IldRequest> {
+        loop {
+            if let Some(request) = self.requests.pop_front() {
+                return Ok(request);
+            }
+            self.fill().await?;
+        }
+    }
+
+    /// Device: the next command line if one has arrived, without waiting.
+    ///
+    /// # Errors
+    /// Line errors.
+    pub fn try_recv_command(&mut self) -> LinkResult<Option<IldRequest>> {
+        if self.requests.is_empty() {
+            self.drain_now()?;
+        }
+        Ok(self.requests.pop_front())
+    }
+
+    /// Device: sends a reply (its lines, then the `->` prompt).
+    ///
+    /// # Errors
+    /// Line errors.
+    pub async fn reply(&mut self, reply: &IldReply) -> LinkResult<()> {
+        self.send_bytes(reply.encode().as_bytes()).await
+    }
+
+    async fn send_bytes(&mut self, bytes: &[u8]) -> LinkResult<()> {
+        self.pending_tx.extend_from_slice(bytes);
+        if let Some(capture) = &mut self.capture {
+            capture
+                .record_sent(bytes)
+                .map_err(|source| LinkError::Capture {
+                    link: self.line.name().to_owned(),
+                    source,
+                })?;
+        }
+        self.line.flush_pending(&mut self.pending_tx).await
+    }
+
+    async fn fill(&mut self) -> LinkResult<()> {
+        self.line.flush_pending(&mut self.pending_tx).await?;
+        let mut buf = [0; READ_CHUNK];
+        let n = self.line.read(&mut buf).await?;
+        self.absorb(&buf[..n])
+    }
+
+    fn drain_now(&mut self) -> LinkResult<()> {
+        self.line.try_flush_pending(&mut self.pending_tx)?;
+        let mut buf = [0; READ_CHUNK];
+        while let Some(n) = self.line.try_read(&mut buf)? {
+            self.absorb(&buf[..n])?;
+        }
+        Ok(())
+    }
+
+    fn absorb(&mut self, bytes: &[u8]) -> LinkResult<()> {
+        if let Some(capture) = &mut self.capture {
+            capture
+                .record_received(bytes)
+                .map_err(|source| LinkError::Capture {
+                    link: self.line.name().to_owned(),
+                    source,
+                })?;
+        }
+        match self.role {
+            Role::Host => self.absorb_as_host(bytes),
+            Role::Device => self.absorb_as_device(bytes),
+        }
+        Ok(())
+    }
+
+    fn absorb_as_host(&mut self, mut bytes: &[u8]) {
+        let arrived = Instant::now();
+        while let Some(parser) = &mut self.reply_parser {
+            let Some((&byte, rest)) = bytes.split_first() else {
+                return;
+            };
+            bytes = rest;
+            if !byte.is_ascii() {
+                continue;
+            }
+            if let Some(reply) = parser.push(&[byte]).pop() {
+                self.replies.push_back(reply);
+                self.reply_parser = None;
+            }
+        }
+        let events = self.decoder.push(bytes);
+        self.absorb_words(events, arrived);
+    }
+
+    fn absorb_words(&mut self, events: Vec<IldEvent>, arrived: Instant) {
+        for event in events {
+            let word = match event {
+                Ok(word) => word,
+                Err(gap) => {
+                    self.counters.sync_losses += 1;
+                    self.counters.skipped_bytes += gap.len;
+                    continue;
+                }
+            };
+            if word.first_in_cycle {
+                if let Some(unfinished) = self.partial.take() {
+                    self.counters.incomplete_cycles += 1;
+                    self.cycles.push_back(unfinished);
+                }
+                self.partial = Some(IldCycle {
+                    distance: IldValue::from_raw(word.raw),
+                    extras: Vec::new(),
+                    arrived,
+                    offset: word.offset,
+                });
+            } else if let (Some(cycle), Some(_)) = (&mut self.partial, word.index_in_cycle) {
+                cycle.extras.push(word.raw);
+                cycle.arrived = arrived;
+            } else {
+                self.counters.orphan_values += 1;
+            }
+            if self
+                .partial
+                .as_ref()
+                .is_some_and(|c| 1 + c.extras.len() >= self.values_per_cycle)
+            {
+                self.cycles.extend(self.partial.take());
+            }
+        }
+    }
+
+    fn absorb_as_device(&mut self, bytes: &[u8]) {
+        for &byte in bytes {
+            if byte == b'\r' || byte == b'\n' {
+                let line = String::from_utf8_lossy(&self.command_line)
+                    .trim()
+                    .to_owned();
+                let overlong = self.command_line.len() > MAX_COMMAND_LINE;
+                self.command_line.clear();
+                if line.is_empty() {
+                    continue;
+                }
+                let command = if overlong {
+                    Err(IldCommandError::UnknownCommand(format!(
+                        "line longer than {MAX_COMMAND_LINE} bytes"
+                    )))
+                } else {
+                    IldCommand::parse(&line)
+                };
+                self.requests.push_back(IldRequest { line, command });
+            } else if self.command_line.len() <= MAX_COMMAND_LINE {
+                self.command_line.push(byte);
+            }
+        }
+    }
+}

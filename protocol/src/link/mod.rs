@@ -1,0 +1,37 @@
+//! The real transports between the controller, the mirror node and the sensor node, named by
+//! URIs on the command line: `socketcan:IFACE`, `slcan:PATH[@BITRATE]`, `ild:PATH[@BAUD]`.
+//!
+//! # Layout
+//! - [`uri`]: link URIs from the command line.
+//! - [`role`]: which end of a link this program is (host or device).
+//! - [`error`]: [`LinkError`], naming the link and the OS error.
+//! - [`pty`]: pty pairs, a serial line between two programs on one machine.
+//! - [`line`]: an async byte line over a serial port or pty (what SLCAN and ILD run on).
+//! - [`socketcan`]: a kernel SocketCAN interface.
+//! - [`slcan`]: SLCAN over a line, host (drives an adapter) and device (acts as one).
+//! - [`can`]: [`CanLink`], one CAN link over either transport: send, receive, timeouts.
+//! - [`ild`]: [`IldLink`], the ILD 2300's value stream and ASCII commands, both ends.
+//! - [`capture`]: recording what crosses a link (candump `-L` lines, raw ILD bytes).
+//! - [`watchdog`]: declares a link timeout after N silent periods.
+
+pub mod can;
+pub mod capture;
+pub mod error;
+pub mod ild;
+pub mod line;
+pub mod pty;
+pub mod role;
+pub mod slcan;
+pub mod socketcan;
+pub mod uri;
+pub mod watchdog;
+
+pub use can::{CanLink, LinkStats, RecvError};
+pub use capture::{ByteCapture, CanCapture, CaptureClock, VirtualClock};
+pub use error::{LinkError, LinkResult};
+pub use ild::{IldCycle, IldLink, IldRequest};
+pub use line::SerialLine;
+pub use pty::PtyPair;
+pub use role::Role;
+pub use uri::{LinkUri, UriError};
+pub use watchdog::{LinkTimeout, Watchdog};

@@ -1,0 +1,274 @@
+//! Link URIs as given on the command line: `socketcan:IFACE[@BITRATE]`,
+//! `slcan:PATH[@BITRATE]` and `ild:PATH[@BAUD]`.
+//!
+//! Bit rates and baud rates accept a plain integer or a `k`/`M` suffix (`500k`, `1M`).
+//! `@BITRATE` on a SocketCAN interface is not configured by the link (use `ip link`); it tells
+//! the bus-load check what the bus runs at. On `slcan:` it selects the adapter's `Sn` command
+//! and is what the bus-load check uses (a pty has no bit rate of its own).
+
+use std::fmt;
+use std::path::PathBuf;
+use std::str::FromStr;
+
+use crate::ild::stream::FACTORY_BAUD as ILD_DEFAULT_BAUD;
+use crate::slcan::SlcanBitrate;
+
+/// The CAN bit rate an SLCAN adapter is set to when the URI names none (python-can's default).
+pub const SLCAN_DEFAULT_BITRATE: u32 = 1_000_000;
+/// The serial baud rate used on an SLCAN line. USB adapters (CANable, ttyACM) and ptys ignore
+/// it; a UART adapter needing another rate is reconfigured with `stty` before use.
+pub const SLCAN_SERIAL_BAUD: u32 = 115_200;
+/// Longest Linux network interface name (IFNAMSIZ - 1).
+const IFACE_MAX_LEN: usize = 15;
+
+/// The bit rates an SLCAN adapter can be set to (`S0`..`S8`), for messages.
+const SLCAN_BITRATES_TEXT: &str =
+    "10000, 20000, 50000, 100000, 125000, 250000, 500000, 800000, 1000000";
+
+/// A parsed link URI.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum LinkUri {
+    /// A kernel SocketCAN interface (`vcan0`, `can0`).
+    SocketCan {
+        /// The interface name.
+        iface: String,
+        /// The bus's bit rate for the bus-load check, if given (not configured by the link).
+        bitrate: Option<u32>,
+    },
+    /// SLCAN (Lawicel) over a serial port or pty.
+    Slcan {
+        /// The serial device path.
+        path: PathBuf,
+        /// The CAN bit rate given in the URI (`None`: adapter set to
+        /// [`SLCAN_DEFAULT_BITRATE`], no bus-load check).
+        bitrate: Option<u32>,
+    },
+    /// The ILD 2300's RS422 byte stream and ASCII commands over a serial port or pty.
+    Ild {
+        /// The serial device path.
+        path: PathBuf,
+        /// The serial baud rate.
+        baud: u32,
+    },
+}
+
+impl LinkUri {
+    /// The CAN bit rate to check the bus load against: `Some` only when the URI gave one.
+    #[must_use]
+    pub fn bus_bitrate(&self) -> Option<u32> {
+        match self {
+            LinkUri::SocketCan { bitrate, .. } | LinkUri::Slcan { bitrate, .. } => *bitrate,
+            LinkUri::Ild { .. } => None,
+        }
+    }
+
+    /// Whether this link carries CAN frames (`socketcan:` or `slcan:`).
+    #[must_use]
+    pub fn is_can(&self) -> bool {
+        !matches!(self, LinkUri::Ild { .. })
+    }
+}
+
+impl fmt::Display for LinkUri {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LinkUri::SocketCan { iface, bitrate } => {
+                write!(f, "socketcan:{iface}")?;
+                bitrate.map_or(Ok(()), |b| write!(f, "@{b}"))
+            }
+            LinkUri::Slcan { path, bitrate } => {
+                write!(f, "slcan:{}", path.display())?;
+                bitrate.map_or(Ok(()), |b| write!(f, "@{b}"))
+            }
+            LinkUri::Ild { path, baud } => write!(f, "ild:{}@{baud}", path.display()),
+        }
+    }
+}
+
+/// A link URI that did not parse: the URI, the byte offset of the problem and what it is.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("bad link URI `{uri}` at byte {offset}: {reason}")]
+pub struct UriError {
+    /// The URI as given.
+    pub uri: String,
+    /// Byte offset into the URI where the problem starts.
+    pub offset: usize,
+    /// What is wrong there.
+    pub reason: String,
+}
+
+impl FromStr for LinkUri {
+    type Err = UriError;
+
+    fn from_str(uri: &str) -> Result<Self, UriError> {
+        let fail = |offset: usize, reason: String| UriError {
+            uri: uri.to_owned(),
+            offset,
+            reason,
+        };
+        let Some((scheme, rest)) = uri.split_once(':') else {
+            return Err(fail(
+                0,
+                "expected `socketcan:IFACE`, `slcan:PATH[@BITRATE]` or `ild:PATH[@BAUD]`".into(),
+            ));
+        };
+        let body_at = scheme.len() + 1;
+        let (target, rate) = match rest.rsplit_once('@') {
+            Some((target, rate)) => (target, Some((rate, body_at + target.len() + 1))),
+            None => (rest, None),
+        };
+        if target.is_empty() {
+            let what = if scheme == "socketcan" {
+                "interface name"
+            } else {
+                "device path"
+            };
+            return Err(fail(body_at, format!("missing {what} after `{scheme}:`")));
+        }
+        let rate_at = rate.map_or(uri.len(), |(_, at)| at);
+        let rate = rate
+            .map(|(text, at)| parse_rate(text).map_err(|r| fail(at, r)))
+            .transpose()?;
+        match scheme {
+            "socketcan" => {
+                if target.len() > IFACE_MAX_LEN {
+                    return Err(fail(
+                        body_at,
+                        format!("interface name `{target}` is longer than {IFACE_MAX_LEN} bytes"),
+                    ));
+                }
+                if let Some(i) = target.find(|c: char| c == '/' || c.is_whitespace()) {
+                    return Err(fail(
+                        body_at + i,
+                        format!("interface name `{target}` contains `/` or white space"),
+                    ));
+                }
+                Ok(LinkUri::SocketCan {
+                    iface: target.to_owned(),
+                    bitrate: rate,
+                })
+            }
+            "slcan" => {
+                if let Some(bitrate) = rate
+                    && SlcanBitrate::from_bits_per_s(bitrate).is_none()
+                {
+                    return Err(fail(
+                        rate_at,
+                        format!(
+                            "CAN bit rate {bitrate} is not one an SLCAN adapter can set \
+                             (S0..S8: {SLCAN_BITRATES_TEXT} bit/s)"
+                        ),
+                    ));
+                }
+                Ok(LinkUri::Slcan {
+                    path: PathBuf::from(target),
+                    bitrate: rate,
+                })
+            }
+            "ild" => Ok(LinkUri::Ild {
+                path: PathBuf::from(target),
+                baud: rate.unwrap_or(ILD_DEFAULT_BAUD),
+            }),
+            other => Err(fail(
+                0,
+                format!("unknown link kind `{other}` (expected `socketcan`, `slcan` or `ild`)"),
+            )),
+        }
+    }
+}
+
+/// Parses `1000000`, `500k`, `1M` into bits (or bauds) per second.
+fn parse_rate(text: &str) -> Result<u32, String> {
+    let (digits, factor) = match text.strip_suffix(['k', 'K']) {
+        Some(d) => (d, 1_000),
+        None => match text.strip_suffix('M') {
+            Some(d) => (d, 1_000_000),
+            None => (text, 1),
+        },
+    };
+    digits
+        .parse::<u32>()
+        .ok()
+        .and_then(|n| n.checked_mul(factor))
+        .filter(|&n| n > 0)
+        .ok_or_else(|| {
+            format!("rate `{text}` is not a positive whole number (e.g. `1000000`, `500k`, `1M`)")
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_each_kind() {
+        assert_eq!(
+            "socketcan:vcan0".parse::<LinkUri>().unwrap(),
+            LinkUri::SocketCan {
+                iface: "vcan0".into(),
+                bitrate: None
+            }
+        );
+        assert_eq!(
+            "slcan:/dev/ttyACM0@500k".parse::<LinkUri>().unwrap(),
+            LinkUri::Slcan {
+                path: "/dev/ttyACM0".into(),
+                bitrate: Some(500_000)
+            }
+        );
+        assert_eq!(
+            "ild:/dev/ttyUSB0".parse::<LinkUri>().unwrap(),
+            LinkUri::Ild {
+                path: "/dev/ttyUSB0".into(),
+                baud: ILD_DEFAULT_BAUD
+            }
+        );
+        assert_eq!(
+            "socketcan:can0@1M"
+                .parse::<LinkUri>()
+                .unwrap()
+                .bus_bitrate(),
+            Some(1_000_000)
+        );
+    }
+
+    #[test]
+    fn display_round_trips() {
+        for text in [
+            "socketcan:can0@1000000",
+            "slcan:/dev/pts/3@125000",
+            "ild:/dev/x@921600",
+        ] {
+            assert_eq!(text.parse::<LinkUri>().unwrap().to_string(), text);
+        }
+    }
+
+    #[test]
+    fn errors_say_what_and_where() {
+        let e = "slcan:/dev/ttyACM0@123456".parse::<LinkUri>().unwrap_err();
+        assert_eq!(e.offset, 19);
+        assert!(e.to_string().contains("123456"), "{e}");
+        assert!(e.to_string().contains("S0..S8"), "{e}");
+
+        let e = "can:vcan0".parse::<LinkUri>().unwrap_err();
+        assert_eq!(e.offset, 0);
+        assert!(e.reason.contains("unknown link kind `can`"), "{e}");
+
+        let e = "ild:/dev/ttyUSB0@fast".parse::<LinkUri>().unwrap_err();
+        assert_eq!(e.offset, 17);
+
+        let e = "slcan:".parse::<LinkUri>().unwrap_err();
+        assert!(e.reason.contains("missing device path"), "{e}");
+
+        let e = "socketcan:averyveryverylongname0"
+            .parse::<LinkUri>()
+            .unwrap_err();
+        assert!(e.reason.contains("longer than 15"), "{e}");
+
+        let e = "vcan0".parse::<LinkUri>().unwrap_err();
+        assert_eq!(e.offset, 0);
+
+        let e = "ild:/dev/x@0".parse::<LinkUri>().unwrap_err();
+        assert!(e.reason.contains("positive"), "{e}");
+    }
+}

@@ -1,0 +1,373 @@
+//! SLCAN links over real pty pairs: host and device ends exchanging frames both ways, garbage
+//! and resynchronisation, bit-rate commands, close and reopen, timeouts, hang-up, capture.
+
+use std::future::Future;
+use std::io::{self, Write};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use scanhil_protocol::can::{CanFrame, CanId};
+use scanhil_protocol::candump;
+use scanhil_protocol::link::slcan::DEVICE_VERSION;
+use scanhil_protocol::link::{
+    CanCapture, CanLink, CaptureClock, LinkError, LinkUri, PtyPair, RecvError, Role, SerialLine,
+    VirtualClock, Watchdog,
+};
+
+fn std_frame(id: u16, data: &[u8]) -> CanFrame {
+    CanFrame::new(CanId::standard(id).unwrap(), data).unwrap()
+}
+
+fn sample_frames() -> Vec<CanFrame> {
+    vec![
+        std_frame(0x100, &[1, 2, 3, 4, 5, 6, 7, 8]),
+        CanFrame::new(CanId::extended(0x1ABC_DEF0).unwrap(), &[0xAA]).unwrap(),
+        CanFrame::new_remote(CanId::standard(0x7FF).unwrap(), 3).unwrap(),
+        CanFrame::new_fd(CanId::standard(0x140).unwrap(), &[0x5A; 12], true, false).unwrap(),
+        std_frame(0x000, &[]),
+    ]
+}
+
+/// Runs `work` while the device end answers the host's commands; the device must not receive
+/// a frame meanwhile.
+async fn while_serving<T>(device: &mut CanLink, work: impl Future<Output = T>) -> T {
+    tokio::pin!(work);
+    tokio::select! {
+        out = &mut work => out,
+        got = device.recv() => panic!("device end received {got:?} while serving a command"),
+    }
+}
+
+/// A device end on a pty master and a host that opened the slave path by URI.
+async fn host_and_device(bitrate: &str) -> (CanLink, CanLink) {
+    let pair = PtyPair::open().unwrap();
+    let uri: LinkUri = format!("slcan:{}{bitrate}", pair.slave_path().display())
+        .parse()
+        .unwrap();
+    let mut device = CanLink::open_pty(pair, None, Role::Device).await.unwrap();
+    let host = while_serving(&mut device, CanLink::open(&uri, Role::Host))
+        .await
+        .unwrap();
+    (host, device)
+}
+
+/// A host on a pty master, and the raw slave line for the test to play the adapter by hand.
+/// The raw side answers the host's `C`, `Sn`, `O` with CR and returns what it received.
+async fn host_and_raw_adapter() -> (CanLink, SerialLine, String) {
+    let pair = PtyPair::open().unwrap();
+    let path = pair.slave_path().to_owned();
+    let mut raw = SerialLine::open(&path, 115_200, "raw").unwrap();
+    let host = CanLink::open_pty(pair, Some(1_000_000), Role::Host);
+    let adapter = async {
+        let mut seen = Vec::new();
+        while seen.iter().filter(|&&b| b == b'\r').count() < 3 {
+            let mut buf = [0; 64];
+            let n = raw.read(&mut buf).await.unwrap();
+            seen.extend_from_slice(&buf[..n]);
+            let answers = buf[..n].iter().filter(|&&b| b == b'\r').count();
+            raw.write_all(&b"\r".repeat(answers)).await.unwrap();
+        }
+        String::from_utf8(seen).unwrap()
+    };
+    let (host, seen) = tokio::join!(host, adapter);
+    (host.unwrap(), raw, seen)
+}
+
+#[tokio::test]
+async fn host_and_device_exchange_frames_both_ways_in_order() {
+    let (mut host, mut device) = host_and_device("@500k").await;
+    assert!(device.channel_open());
+    assert_eq!(device.slcan_bitrate(), Some(500_000));
+    assert_eq!(host.bus_bitrate(), Some(500_000));
+
+    for frame in sample_frames() {
+        host.send(&frame).await.unwrap();
+    }
+    for expected in sample_frames() {
+        assert_eq!(device.recv().await.unwrap(), expected);
+    }
+    for frame in sample_frames().iter().rev() {
+        device.send(frame).await.unwrap();
+    }
+    for expected in sample_frames().iter().rev() {
+        assert_eq!(host.recv().await.unwrap(), *expected);
+    }
+    let version = while_serving(&mut device, host.adapter_version()).await;
+    assert_eq!(version.unwrap().as_deref(), Some(DEVICE_VERSION));
+    assert_eq!(host.stats().frames_sent, 5);
+    assert_eq!(host.stats().frames_received, 5);
+    assert_eq!(device.stats().frames_received, 5);
+    assert_eq!(host.stats().slcan.malformed_lines, 0);
+}
+
+#[tokio::test]
+async fn the_host_sends_c_s_o_on_open() {
+    let (_host, _raw, seen) = host_and_raw_adapter().await;
+    assert_eq!(seen, "C\rS8\rO\r");
+}
+
+#[tokio::test]
+async fn the_host_skips_garbage_and_adapter_acks_and_resynchronises() {
+    let (mut host, raw, _) = host_and_raw_adapter().await;
+    raw.write_all(b"t1238DEADBEEF01020304\rgar\xffbage\rz\rZ\r\rt12\rt3213010203\r")
+        .await
+        .unwrap();
+    assert_eq!(
+        host.recv().await.unwrap(),
+        std_frame(0x123, &[0xDE, 0xAD, 0xBE, 0xEF, 1, 2, 3, 4])
+    );
+    // `t12` (too short) is one malformed line, then the stream is back in step.
+    assert_eq!(host.recv().await.unwrap(), std_frame(0x321, &[1, 2, 3]));
+    let stats = host.stats().slcan;
+    assert_eq!(stats.malformed_lines, 2, "{stats:?}");
+}
+
+#[tokio::test]
+async fn an_unsolicited_bel_is_reported_as_a_refused_frame() {
+    let (mut host, raw, _) = host_and_raw_adapter().await;
+    raw.write_all(b"\x07").await.unwrap();
+    let error = host.recv().await.unwrap_err();
+    assert!(matches!(error, LinkError::AdapterRefused { .. }), "{error}");
+    assert_eq!(host.stats().slcan.refused_frames, 1);
+}
+
+#[tokio::test]
+async fn the_device_skips_garbage_answers_bel_and_resynchronises() {
+    let pair = PtyPair::open().unwrap();
+    let path = pair.slave_path().to_owned();
+    let mut device = CanLink::open_pty(pair, None, Role::Device).await.unwrap();
+    let mut raw = SerialLine::open(&path, 115_200, "raw").unwrap();
+    raw.write_all(b"O\rxyz\rt1238DEADBEEF01020304\r\x00\xff\rt12\rt3213010203\rV\r")
+        .await
+        .unwrap();
+    assert_eq!(
+        device.recv().await.unwrap(),
+        std_frame(0x123, &[0xDE, 0xAD, 0xBE, 0xEF, 1, 2, 3, 4])
+    );
+    assert_eq!(device.recv().await.unwrap(), std_frame(0x321, &[1, 2, 3]));
+    // Let the device answer the trailing `V`, then read all answers.
+    assert!(
+        device
+            .recv_timeout(Duration::from_millis(50))
+            .await
+            .unwrap()
+            .is_none()
+    );
+    let mut answers = Vec::new();
+    while !answers.ends_with(b"V1013\r") {
+        let mut buf = [0; 64];
+        let n = raw.read(&mut buf).await.unwrap();
+        answers.extend_from_slice(&buf[..n]);
+    }
+    assert_eq!(answers, b"\r\x07\x07\x07V1013\r");
+    assert_eq!(device.stats().slcan.malformed_lines, 3);
+}
+
+#[tokio::test]
+async fn bitrate_commands_close_and_reopen() {
+    let (mut host, mut device) = host_and_device("@500000").await;
+    assert_eq!(device.slcan_bitrate(), Some(500_000));
+
+    while_serving(&mut device, host.close_channel())
+        .await
+        .unwrap();
+    assert!(!device.channel_open());
+    assert!(!host.channel_open());
+    // A closed adapter forwards nothing, and the host may not transmit.
+    device.send(&std_frame(0x110, &[1])).await.unwrap();
+    assert_eq!(device.stats().slcan.dropped_while_closed, 1);
+    assert!(
+        host.recv_timeout(Duration::from_millis(50))
+            .await
+            .unwrap()
+            .is_none()
+    );
+    let refused = host.send(&std_frame(0x100, &[1])).await.unwrap_err();
+    assert!(refused.to_string().contains("closed"), "{refused}");
+
+    while_serving(&mut device, host.open_channel(125_000))
+        .await
+        .unwrap();
+    assert!(device.channel_open());
+    assert_eq!(device.slcan_bitrate(), Some(125_000));
+    device.send(&std_frame(0x110, &[2])).await.unwrap();
+    assert_eq!(host.recv().await.unwrap(), std_frame(0x110, &[2]));
+
+    let unsupported = host.open_channel(123_456).await.unwrap_err();
+    assert!(unsupported.to_string().contains("123456"), "{unsupported}");
+}
+
+#[tokio::test]
+async fn an_adapter_refusing_the_bitrate_fails_the_open_naming_the_command() {
+    let pair = PtyPair::open().unwrap();
+    let path = pair.slave_path().to_owned();
+    let mut raw = SerialLine::open(&path, 115_200, "raw").unwrap();
+    let host = CanLink::open_pty(pair, Some(250_000), Role::Host);
+    let adapter = async {
+        let mut seen = Vec::new();
+        loop {
+            let mut buf = [0; 64];
+            let n = raw.read(&mut buf).await.unwrap();
+            seen.extend_from_slice(&buf[..n]);
+            if seen.ends_with(b"C\r") {
+                raw.write_all(b"\r").await.unwrap();
+            }
+            if seen.ends_with(b"S5\r") {
+                raw.write_all(b"\x07").await.unwrap();
+                return;
+            }
+        }
+    };
+    let (host, ()) = tokio::join!(host, adapter);
+    let error = host.unwrap_err();
+    assert!(matches!(error, LinkError::AdapterRefused { .. }), "{error}");
+    assert!(error.to_string().contains("`S5`"), "{error}");
+}
+
+#[tokio::test]
+async fn a_silent_adapter_fails_the_open_after_the_reply_timeout() {
+    let pair = PtyPair::open().unwrap();
+    let path = pair.slave_path().to_owned();
+    let _raw = SerialLine::open(&path, 115_200, "raw").unwrap();
+    let started = Instant::now();
+    let error = CanLink::open_pty(pair, None, Role::Host).await.unwrap_err();
+    assert!(matches!(error, LinkError::NoReply { .. }), "{error}");
+    assert!(error.to_string().contains("`C`"), "{error}");
+    assert!(started.elapsed() >= Duration::from_secs(1));
+}
+
+#[tokio::test]
+async fn receive_timeouts_and_the_watchdog_fire_on_a_quiet_link() {
+    let (mut host, mut device) = host_and_device("").await;
+    let started = Instant::now();
+    assert!(
+        host.recv_timeout(Duration::from_millis(30))
+            .await
+            .unwrap()
+            .is_none()
+    );
+    assert!(started.elapsed() >= Duration::from_millis(30));
+    assert!(host.try_recv().unwrap().is_none());
+
+    let mut watchdog = Watchdog::new(host.name(), Duration::from_millis(2), 10);
+    device.send(&std_frame(0x110, &[9])).await.unwrap();
+    assert_eq!(
+        host.recv_watched(&mut watchdog).await.unwrap(),
+        std_frame(0x110, &[9])
+    );
+    let started = Instant::now();
+    let Err(RecvError::Timeout(timeout)) = host.recv_watched(&mut watchdog).await else {
+        panic!("the watchdog did not fire");
+    };
+    assert!(started.elapsed() >= Duration::from_millis(18));
+    assert_eq!(timeout.periods, 10);
+    assert!(timeout.to_string().contains(host.name()), "{timeout}");
+}
+
+#[tokio::test]
+async fn try_recv_delivers_a_frame_that_has_arrived() {
+    let (mut host, mut device) = host_and_device("").await;
+    host.send(&std_frame(0x100, &[4])).await.unwrap();
+    let mut got = None;
+    for _ in 0..200 {
+        got = device.try_recv().unwrap();
+        if got.is_some() {
+            break;
+        }
+        tokio::time::sleep(Duration::from_millis(1)).await;
+    }
+    assert_eq!(got, Some(std_frame(0x100, &[4])));
+}
+
+#[tokio::test]
+async fn the_device_sees_the_host_hang_up() {
+    let (host, mut device) = host_and_device("").await;
+    drop(host);
+    let error = device.recv().await.unwrap_err();
+    assert!(matches!(error, LinkError::HangUp { .. }), "{error}");
+    assert!(error.to_string().contains("slcan:/dev/pts/"), "{error}");
+}
+
+#[tokio::test]
+async fn the_host_on_the_master_sees_the_adapter_hang_up() {
+    let (mut host, raw, _) = host_and_raw_adapter().await;
+    drop(raw);
+    let error = host.recv().await.unwrap_err();
+    assert!(matches!(error, LinkError::HangUp { .. }), "{error}");
+}
+
+#[tokio::test]
+async fn opening_a_missing_or_non_serial_path_names_it_and_the_os_error() {
+    let uri: LinkUri = "slcan:/dev/no-such-adapter@1M".parse().unwrap();
+    let error = CanLink::open(&uri, Role::Host).await.unwrap_err();
+    let text = error.to_string();
+    assert!(
+        text.contains("slcan:/dev/no-such-adapter@1000000"),
+        "{text}"
+    );
+    assert!(text.contains("No such file"), "{text}");
+
+    let uri: LinkUri = "slcan:/dev/null".parse().unwrap();
+    let text = CanLink::open(&uri, Role::Host)
+        .await
+        .unwrap_err()
+        .to_string();
+    assert!(text.contains("not a serial port"), "{text}");
+
+    let pair = PtyPair::open().unwrap();
+    let text = CanLink::open_pty(pair, Some(300_000), Role::Host)
+        .await
+        .unwrap_err()
+        .to_string();
+    assert!(text.contains("300000") && text.contains("S0..S8"), "{text}");
+}
+
+/// A writer whose bytes the test reads back.
+#[derive(Clone, Default)]
+struct Shared(Arc<Mutex<Vec<u8>>>);
+
+impl Write for Shared {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        self.0.lock().unwrap().extend_from_slice(buf);
+        Ok(buf.len())
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+}
+
+#[tokio::test]
+async fn the_capture_records_every_frame_as_a_candump_line_in_order() {
+    let (mut host, mut device) = host_and_device("").await;
+    let log = Shared::default();
+    let clock = VirtualClock::default();
+    host.set_capture(CanCapture::new(
+        log.clone(),
+        "fsm",
+        CaptureClock::Virtual(clock.clone()),
+    ));
+    let frames = sample_frames();
+    for (k, frame) in frames.iter().enumerate() {
+        clock.set(Duration::from_micros(50 * k as u64));
+        host.send(frame).await.unwrap();
+        device.recv().await.unwrap();
+        device.send(frame).await.unwrap();
+        host.recv().await.unwrap();
+    }
+    let text = String::from_utf8(log.0.lock().unwrap().clone()).unwrap();
+    let entries: Vec<_> = text
+        .lines()
+        .map(|line| candump::parse_line(line).unwrap())
+        .collect();
+    assert_eq!(entries.len(), 2 * frames.len());
+    for (k, pair) in entries.chunks(2).enumerate() {
+        assert_eq!(pair[0].frame, frames[k]);
+        assert_eq!(pair[1].frame, frames[k]);
+        assert_eq!(pair[0].interface, "fsm");
+        assert_eq!(pair[0].timestamp.nanos, 50_000 * k as u32);
+    }
+    assert!(
+        text.starts_with("(0.000000) fsm 100#0102030405060708\n"),
+        "{text}"
+    );
+}
