@@ -1,1 +1,591 @@
-//! (being written)
+//! The optical path: from the mirror's mechanical angles to the laser spot on the surface,
+//! the sensor distance `z_meas` along the folded beam, and shading.
+//!
+//! Shading rules (as on the real sensor, the result is "no distance", never a wrong one):
+//! - **illumination**: the beam's first hit is the spot. Where an edge is steeper than the
+//!   beam, the beam cannot reach the surface behind it and lands on the edge's wall at a
+//!   grazing angle; a spot whose surface normal is more than `max_incidence_deg` from the
+//!   incoming beam scatters too little and too widely: [`ShadeReason::GrazingIllumination`];
+//! - **reflection**: the light goes from the spot to the receiver via the mirror
+//!   ([`scanhil_geometry::ReceiverPath`]); the spot must face the receiver within
+//!   `max_viewing_deg` ([`ShadeReason::ReceiverFacesAway`]) and nothing may cross the path
+//!   between the spot and the mirror ([`ShadeReason::ReflectionPathBlocked`]).
+//!
+//! With `spot` set, the 130 um spot is sampled at several points of its footprint (parallel
+//! rays across the beam); the distance is the mean over the samples that are not shaded, and
+//! the spot is shaded only when all samples are.
+
+use nalgebra::{Point3, Vector3};
+use scanhil_geometry::{BeamRay, GeometryModel, Scanner, ScannerSetup, SetupError};
+use scanhil_protocol::plant_units::SensingPair;
+use serde::{Deserialize, Serialize};
+
+use crate::surface::Surface;
+
+/// Longest beam stretch searched for a surface, mm (far beyond the sensor's range).
+const BEAM_SEARCH_LENGTH_MM: f64 = 1.0e4;
+
+fn default_max_angle_deg() -> f64 {
+    80.0
+}
+fn yes() -> bool {
+    true
+}
+fn default_spot_diameter_mm() -> f64 {
+    0.13
+}
+fn default_spot_samples() -> usize {
+    7
+}
+
+/// Spot averaging: the footprint sampled by parallel rays.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpotConfig {
+    /// Spot diameter, mm (the paper's 130 um by default).
+    #[serde(default = "default_spot_diameter_mm")]
+    pub diameter_mm: f64,
+    /// Rays across the footprint (1 to 64), in a sunflower pattern.
+    #[serde(default = "default_spot_samples")]
+    pub samples: usize,
+}
+
+/// The optics of a scene (the scene's `optics` section).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OpticsConfig {
+    /// Geometry model: `exact_reflection` (default) or `small_angle`.
+    #[serde(default)]
+    pub model: GeometryModel,
+    /// Mechanical setup (paper values by default).
+    #[serde(default)]
+    pub setup: ScannerSetup,
+    /// Whether shading is evaluated (the plant overrides this from the scene's parts).
+    #[serde(default = "yes")]
+    pub shading: bool,
+    /// Largest angle between the surface normal and the way back along the beam that still
+    /// gives a peak, degrees.
+    #[serde(default = "default_max_angle_deg")]
+    pub max_incidence_deg: f64,
+    /// Largest angle between the surface normal and the path to the receiver that still gives
+    /// a peak, degrees.
+    #[serde(default = "default_max_angle_deg")]
+    pub max_viewing_deg: f64,
+    /// Spot averaging; absent or null: a point spot.
+    #[serde(default)]
+    pub spot: Option<SpotConfig>,
+}
+
+impl Default for OpticsConfig {
+    fn default() -> Self {
+        OpticsConfig {
+            model: GeometryModel::default(),
+            setup: ScannerSetup::default(),
+            shading: true,
+            max_incidence_deg: default_max_angle_deg(),
+            max_viewing_deg: default_max_angle_deg(),
+            spot: None,
+        }
+    }
+}
+
+/// Why the optics could not be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum OpticsError {
+    /// The mechanical setup is unusable.
+    #[error("optics.setup: {0}")]
+    Setup(#[from] SetupError),
+    /// A field is out of its domain.
+    #[error("optics field `{field}` = {value} must be {requirement}")]
+    Invalid {
+        /// The field's JSON name.
+        field: &'static str,
+        /// The value found.
+        value: f64,
+        /// What it must be.
+        requirement: &'static str,
+    },
+}
+
+/// Why the sensor gets no peak from a spot.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ShadeReason {
+    /// The beam meets the surface too obliquely (an edge steeper than the beam).
+    GrazingIllumination,
+    /// The spot does not face the receiver closely enough.
+    ReceiverFacesAway,
+    /// The surface blocks the path from the spot to the mirror.
+    ReflectionPathBlocked,
+    /// No path from the spot to the receiver through the mirror.
+    NoReceiverPath,
+}
+
+impl ShadeReason {
+    /// Stable snake_case name.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            ShadeReason::GrazingIllumination => "grazing_illumination",
+            ShadeReason::ReceiverFacesAway => "receiver_faces_away",
+            ShadeReason::ReflectionPathBlocked => "reflection_path_blocked",
+            ShadeReason::NoReceiverPath => "no_receiver_path",
+        }
+    }
+}
+
+/// What the optics deliver to the sensor for one mirror position.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum OpticalOutcome {
+    /// The true distance along the folded beam (no sensor noise), mm.
+    Distance {
+        /// Sensor reference to the spot along the beam, mm.
+        z_meas_mm: f64,
+    },
+    /// The beam meets no surface (or leaves no usable mirror path).
+    Miss,
+    /// The spot is shaded: no peak.
+    Shaded(ShadeReason),
+}
+
+/// The optics' answer for one mirror position.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OpticalReading {
+    /// The beam after the mirror.
+    pub beam: BeamRay,
+    /// Where the beam's centre meets the surface, mm (`None` on a miss).
+    pub spot_mm: Option<Point3<f64>>,
+    /// Ground truth: the surface's z at the spot's (x, y), mm.
+    pub true_height_mm: Option<f64>,
+    /// The distance or why there is none.
+    pub outcome: OpticalOutcome,
+}
+
+/// The optical path onto a surface.
+#[derive(Debug, Clone)]
+pub struct Optics {
+    scanner: Scanner,
+    surface: Surface,
+    shading: bool,
+    cos_max_incidence: f64,
+    cos_max_viewing: f64,
+    /// Offsets across the beam, as fractions of the spot radius along two unit axes.
+    spot_pattern: Vec<[f64; 2]>,
+    spot_radius_mm: f64,
+}
+
+impl Optics {
+    /// Optics with a checked configuration over `surface`.
+    ///
+    /// # Errors
+    /// [`OpticsError`] naming the bad field.
+    pub fn new(config: &OpticsConfig, surface: Surface) -> Result<Optics, OpticsError> {
+        let scanner = Scanner::new(config.setup, config.model)?;
+        let angle = |field: &'static str, value: f64| {
+            if value.is_finite() && value > 0.0 && value <= 90.0 {
+                Ok(value.to_radians().cos())
+            } else {
+                Err(OpticsError::Invalid {
+                    field,
+                    value,
+                    requirement: "in (0, 90] degrees",
+                })
+            }
+        };
+        let cos_max_incidence = angle("max_incidence_deg", config.max_incidence_deg)?;
+        let cos_max_viewing = angle("max_viewing_deg", config.max_viewing_deg)?;
+        let (spot_pattern, spot_radius_mm) = match config.spot {
+            None => (vec![[0.0, 0.0]], 0.0),
+            Some(spot) => {
+                if !(spot.diameter_mm.is_finite() && spot.diameter_mm > 0.0) {
+                    return Err(OpticsError::Invalid {
+                        field: "spot.diameter_mm",
+                        value: spot.diameter_mm,
+                        requirement: "finite and > 0",
+                    });
+                }
+                if !(1..=64).contains(&spot.samples) {
+                    return Err(OpticsError::Invalid {
+                        field: "spot.samples",
+                        value: spot.samples as f64,
+                        requirement: "between 1 and 64",
+                    });
+                }
+                (sunflower(spot.samples), spot.diameter_mm / 2.0)
+            }
+        };
+        Ok(Optics {
+            scanner,
+            surface,
+            shading: config.shading,
+            cos_max_incidence,
+            cos_max_viewing,
+            spot_pattern,
+            spot_radius_mm,
+        })
+    }
+
+    /// The same optics with shading switched on or off (the plant's `shading` part).
+    #[must_use]
+    pub fn with_shading(mut self, on: bool) -> Optics {
+        self.shading = on;
+        self
+    }
+
+    /// Whether shading is evaluated.
+    #[must_use]
+    pub fn shading(&self) -> bool {
+        self.shading
+    }
+
+    /// The surface (ground truth for scoring).
+    #[must_use]
+    pub fn surface(&self) -> &Surface {
+        &self.surface
+    }
+
+    /// The scanner geometry and model.
+    #[must_use]
+    pub fn scanner(&self) -> &Scanner {
+        &self.scanner
+    }
+
+    /// Where the spot lands and what distance the optics deliver, for the mirror's mechanical
+    /// angles (rad). Never panics; non-finite angles give [`OpticalOutcome::Miss`].
+    #[must_use]
+    pub fn observe(&self, mechanical_angles_rad: SensingPair) -> OpticalReading {
+        let SensingPair { alpha, beta } = mechanical_angles_rad;
+        let beam = self.scanner.beam(alpha, beta);
+        let miss = OpticalReading {
+            beam,
+            spot_mm: None,
+            true_height_mm: None,
+            outcome: OpticalOutcome::Miss,
+        };
+        let length = beam.direction.norm();
+        let usable = beam.path_to_origin_mm.is_finite()
+            && beam.path_to_origin_mm > 0.0
+            && beam.origin_mm.coords.iter().all(|v| v.is_finite())
+            && length.is_finite()
+            && length > 0.5;
+        if !usable {
+            return miss;
+        }
+        let unit = beam.direction / length;
+        let Some(center) = self
+            .surface
+            .first_hit(&beam.origin_mm, &unit, BEAM_SEARCH_LENGTH_MM)
+        else {
+            return miss;
+        };
+        let true_height_mm = self.surface.height_at(center.point_mm.x, center.point_mm.y);
+        // Spot samples: the centre only, or parallel rays across the footprint.
+        let (across_1, across_2) = perpendicular_axes(&unit);
+        let mut sum_mm = 0.0;
+        let mut count = 0usize;
+        let mut first_shade = None;
+        for &[a, b] in &self.spot_pattern {
+            let hit = if a == 0.0 && b == 0.0 {
+                Some(center)
+            } else {
+                let offset = self.spot_radius_mm * (a * across_1 + b * across_2);
+                self.surface
+                    .first_hit(&(beam.origin_mm + offset), &unit, BEAM_SEARCH_LENGTH_MM)
+            };
+            let Some(hit) = hit else { continue };
+            match self.shade(alpha, beta, &unit, &hit) {
+                None => {
+                    sum_mm += beam.z_meas_at(hit.t_mm / length);
+                    count += 1;
+                }
+                Some(reason) => {
+                    first_shade.get_or_insert(reason);
+                }
+            }
+        }
+        let outcome = match (count, first_shade) {
+            (0, Some(reason)) => OpticalOutcome::Shaded(reason),
+            (0, None) => OpticalOutcome::Miss,
+            _ => OpticalOutcome::Distance {
+                z_meas_mm: sum_mm / count as f64,
+            },
+        };
+        OpticalReading {
+            beam,
+            spot_mm: Some(center.point_mm),
+            true_height_mm,
+            outcome,
+        }
+    }
+
+    /// Why a hit gives no peak, or `None` if it does (always `None` with shading off).
+    fn shade(
+        &self,
+        d_alpha: f64,
+        d_beta: f64,
+        unit_beam: &Vector3<f64>,
+        hit: &crate::surface::Hit,
+    ) -> Option<ShadeReason> {
+        if !self.shading {
+            return None;
+        }
+        if -unit_beam.dot(&hit.normal) < self.cos_max_incidence {
+            return Some(ShadeReason::GrazingIllumination);
+        }
+        let Some(path) = self.scanner.receiver_path(d_alpha, d_beta, &hit.point_mm) else {
+            return Some(ShadeReason::NoReceiverPath);
+        };
+        if path.direction.dot(&hit.normal) < self.cos_max_viewing {
+            return Some(ShadeReason::ReceiverFacesAway);
+        }
+        self.surface
+            .first_hit(&hit.point_mm, &path.direction, path.length_mm)
+            .map(|_| ShadeReason::ReflectionPathBlocked)
+    }
+}
+
+/// Two unit vectors perpendicular to `d` and to each other.
+fn perpendicular_axes(d: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    let helper = if d.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
+    let a = d.cross(&helper).normalize();
+    (a, d.cross(&a))
+}
+
+/// `n` points spread evenly over the unit disk (Vogel's sunflower), the first at the centre.
+fn sunflower(n: usize) -> Vec<[f64; 2]> {
+    let golden_angle = std::f64::consts::PI * (3.0 - 5f64.sqrt());
+    (0..n)
+        .map(|k| {
+            if k == 0 {
+                return [0.0, 0.0];
+            }
+            let r = (k as f64 / (n - 1) as f64).sqrt();
+            let (s, c) = (k as f64 * golden_angle).sin_cos();
+            [r * c, r * s]
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::surface::{SurfaceConfig, duplo};
+    use proptest::prelude::*;
+    use std::path::Path;
+
+    fn optics(surface_json: &str, config: OpticsConfig) -> Optics {
+        let surface: SurfaceConfig = serde_json::from_str(surface_json).unwrap();
+        Optics::new(
+            &config,
+            Surface::from_config(&surface, Path::new(".")).unwrap(),
+        )
+        .unwrap()
+    }
+
+    fn angles(alpha_deg: f64, beta_deg: f64) -> SensingPair {
+        SensingPair {
+            alpha: alpha_deg.to_radians(),
+            beta: beta_deg.to_radians(),
+        }
+    }
+
+    fn z_meas(reading: &OpticalReading) -> f64 {
+        match reading.outcome {
+            OpticalOutcome::Distance { z_meas_mm } => z_meas_mm,
+            other => panic!("expected a distance, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn plane_distance_round_trips_through_reconstruction() {
+        for model in GeometryModel::ALL {
+            let o = optics(
+                r#"{"kind": "plane", "distance_mm": 130.0}"#,
+                OpticsConfig {
+                    model,
+                    ..OpticsConfig::default()
+                },
+            );
+            for (a, b) in [(0.0, 0.0), (1.5, 1.5), (-1.2, 0.7)] {
+                let r = o.observe(angles(a, b));
+                let p = o
+                    .scanner()
+                    .point(a.to_radians(), b.to_radians(), z_meas(&r));
+                assert!((p.z + 130.0).abs() < 1e-9, "{model} {a} {b}: {p}");
+                assert!((p - r.spot_mm.unwrap()).norm() < 1e-9);
+                assert_eq!(r.true_height_mm, Some(-130.0));
+            }
+            // At rest the beam goes straight down from y_FSM: z_meas = 10 + 130.
+            assert!((z_meas(&o.observe(angles(0.0, 0.0))) - 140.0).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn nothing_below_is_a_miss() {
+        let o = optics(
+            r#"{"kind": "sphere", "radius_mm": 1.0, "center_distance_mm": 130.0}"#,
+            OpticsConfig::default(),
+        );
+        assert_eq!(o.observe(angles(1.5, 0.0)).outcome, OpticalOutcome::Miss);
+        assert!(matches!(
+            o.observe(angles(0.0, 0.0)).outcome,
+            OpticalOutcome::Distance { .. }
+        ));
+    }
+
+    /// A step up towards -y (high where y < edge) seen by a beam tilting to -y: where the beam
+    /// would reach the low floor right behind the edge, it meets the vertical wall instead.
+    #[test]
+    fn step_edge_shades_the_illumination_and_never_gives_a_wrong_distance() {
+        // Low level at 130 mm for y >= edge, high level 4 mm up for y < edge: height_mm is
+        // relative to the y < edge side, so describe it from there.
+        let step = r#"{"kind": "step", "distance_mm": 126.0, "height_mm": -4.0, "axis": "y", "edge_mm": -13.0}"#;
+        let o = optics(step, OpticsConfig::default());
+        let surface = o.surface().clone();
+        let mut shaded = 0;
+        for k in 0..=300 {
+            let a = -1.5 + 3.0 * f64::from(k) / 300.0;
+            let r = o.observe(angles(a, 0.0));
+            match r.outcome {
+                OpticalOutcome::Distance { z_meas_mm } => {
+                    // Any distance reported is the true one: reconstruction lands on the surface.
+                    let p = o.scanner().point(a.to_radians(), 0.0, z_meas_mm);
+                    let truth = surface.height_at(p.x, p.y).unwrap();
+                    assert!((p.z - truth).abs() < 1e-6, "alpha {a}: {} vs {truth}", p.z);
+                }
+                OpticalOutcome::Shaded(_) => shaded += 1,
+                OpticalOutcome::Miss => panic!("miss at {a}"),
+            }
+        }
+        assert!(shaded > 0, "the wall must shade some positions");
+        // Exactly at the wall: grazing illumination.
+        let on_wall = (0..=3000)
+            .map(|k| o.observe(angles(-1.5 + 3.0 * f64::from(k) / 3000.0, 0.0)))
+            .find(|r| {
+                r.spot_mm.is_some_and(|p| {
+                    (p.y + 13.0).abs() < 1e-9 && p.z < -126.0 + 1e-9 && p.z > -130.0
+                })
+            });
+        if let Some(r) = on_wall {
+            assert_eq!(
+                r.outcome,
+                OpticalOutcome::Shaded(ShadeReason::GrazingIllumination)
+            );
+        }
+    }
+
+    #[test]
+    fn wall_facing_away_from_the_receiver_blocks_the_reflection_path() {
+        // High level for y >= edge, 8 mm up: the wall faces -y, while the receiver looks from +y.
+        // Spots on the low floor just before the edge send their light into the wall.
+        let step = r#"{"kind": "step", "distance_mm": 130.0, "height_mm": 8.0, "axis": "y", "edge_mm": -9.0}"#;
+        let o = optics(step, OpticsConfig::default());
+        let reasons: Vec<_> = (0..=300)
+            .map(|k| o.observe(angles(-1.5 + 3.0 * f64::from(k) / 300.0, 0.0)))
+            .filter_map(|r| match r.outcome {
+                OpticalOutcome::Shaded(reason) => Some(reason),
+                _ => None,
+            })
+            .collect();
+        assert!(
+            reasons.contains(&ShadeReason::ReflectionPathBlocked),
+            "{reasons:?}"
+        );
+        // Without shading the same positions all give distances.
+        let unshaded = o.clone().with_shading(false);
+        assert!((0..=300).all(|k| matches!(
+            unshaded.observe(angles(-1.5 + 3.0 * f64::from(k) / 300.0, 0.0)).outcome,
+            OpticalOutcome::Distance { .. }
+        )));
+    }
+
+    #[test]
+    fn duplo_stud_height_from_distances() {
+        let o = optics(r#"{"kind": "duplo_2x4"}"#, OpticsConfig::default());
+        // Find a mirror angle whose spot is on the stud's ring and one on the top face.
+        let z_at = |alpha_deg: f64, beta_deg: f64| {
+            let r = o.observe(angles(alpha_deg, beta_deg));
+            o.scanner()
+                .point(alpha_deg.to_radians(), beta_deg.to_radians(), z_meas(&r))
+                .z
+        };
+        // beta 1.5 deg puts the spot 3.5 mm from the stud's axis (x = 0): on the ring
+        // (3.25 to 4.7 mm); alpha -1.4 deg puts it at y = -16.6, on the top face beyond it.
+        let top = z_at(-1.4, 0.0);
+        let ring = z_at(0.0, 1.5);
+        assert!(
+            ((ring - top) - duplo::STUD_HEIGHT_MM).abs() < 1e-9,
+            "{ring} - {top} = {}",
+            ring - top
+        );
+    }
+
+    #[test]
+    fn spot_averaging_smooths_a_step_edge() {
+        let step = r#"{"kind": "step", "distance_mm": 130.0, "height_mm": 0.05, "axis": "x", "edge_mm": 0.0}"#;
+        let config = OpticsConfig {
+            spot: Some(SpotConfig {
+                diameter_mm: 0.13,
+                samples: 19,
+            }),
+            shading: false,
+            ..OpticsConfig::default()
+        };
+        let o = optics(step, config);
+        let at_edge = z_meas(&o.observe(angles(0.0, 0.0)));
+        // Half the footprint on each level: between the two distances.
+        assert!(at_edge < 140.0 && at_edge > 140.0 - 0.05, "{at_edge}");
+        // Fully on the upper level, the footprint's mean is the centre's distance (within
+        // 0.1 um: the sunflower pattern is not exactly centred).
+        let point = optics(step, OpticsConfig { shading: false, ..OpticsConfig::default() });
+        let away = z_meas(&o.observe(angles(0.0, 0.2)));
+        let away_point = z_meas(&point.observe(angles(0.0, 0.2)));
+        assert!((away - away_point).abs() < 1e-4, "{away} vs {away_point}");
+    }
+
+    #[test]
+    fn config_defaults_and_errors() {
+        let c: OpticsConfig = serde_json::from_str("{}").unwrap();
+        assert_eq!(c, OpticsConfig::default());
+        let c: OpticsConfig =
+            serde_json::from_str(r#"{"model": "small_angle", "spot": {}}"#).unwrap();
+        assert_eq!(c.model, GeometryModel::SmallAngle);
+        assert_eq!(
+            c.spot,
+            Some(SpotConfig {
+                diameter_mm: 0.13,
+                samples: 7
+            })
+        );
+        let surface = Surface::from_config(
+            &serde_json::from_str(r#"{"kind": "plane", "distance_mm": 100.0}"#).unwrap(),
+            Path::new("."),
+        )
+        .unwrap();
+        let bad = OpticsConfig {
+            max_viewing_deg: 0.0,
+            ..OpticsConfig::default()
+        };
+        let err = Optics::new(&bad, surface).unwrap_err().to_string();
+        assert!(err.contains("max_viewing_deg"), "{err}");
+    }
+
+    proptest! {
+        #[test]
+        fn observe_never_panics_and_stays_finite(alpha in -1e6f64..1e6, beta in -1e6f64..1e6, small in any::<bool>()) {
+            let model = if small { GeometryModel::SmallAngle } else { GeometryModel::ExactReflection };
+            let o = optics(r#"{"kind": "duplo_2x4"}"#, OpticsConfig { model, spot: Some(SpotConfig { diameter_mm: 0.13, samples: 3 }), ..OpticsConfig::default() });
+            for scale in [1.0, 1e-6] {
+                let r = o.observe(SensingPair { alpha: alpha * scale, beta: beta * scale });
+                if let OpticalOutcome::Distance { z_meas_mm } = r.outcome {
+                    prop_assert!(z_meas_mm.is_finite());
+                    prop_assert!(r.spot_mm.unwrap().coords.iter().all(|v| v.is_finite()));
+                }
+            }
+        }
+    }
+}
