@@ -1,0 +1,297 @@
+//! The nominal loop: discrete controller times the nominal plant model. Closed-loop poles from
+//! the state-space realisation, margins, bandwidth and the complementary sensitivity T.
+
+use nalgebra::{Complex, DMatrix};
+
+use crate::sos::Cascade;
+
+/// A complex pole or zero in the z-plane, with its s-plane reading.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct ZPoint {
+    /// Real part (z-plane).
+    pub re: f64,
+    /// Imaginary part (z-plane).
+    pub im: f64,
+    /// |z|; a pole with |z| >= 1 is unstable.
+    pub abs: f64,
+    /// The frequency it sits at, `arg(z) / (2 pi T)`, Hz.
+    pub f_hz: f64,
+    /// The damping ratio of `s = ln(z)/T`.
+    pub damping: f64,
+}
+
+impl ZPoint {
+    /// Describes `z` for sampling period `period_s`.
+    #[must_use]
+    pub fn new(z: Complex<f64>, period_s: f64) -> Self {
+        let s = z.ln() / period_s;
+        Self {
+            re: z.re,
+            im: z.im,
+            abs: z.norm(),
+            f_hz: z.arg().abs() / (std::f64::consts::TAU * period_s),
+            damping: if s.norm() > 0.0 {
+                -s.re / s.norm()
+            } else {
+                0.0
+            },
+        }
+    }
+}
+
+impl std::fmt::Display for ZPoint {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{:.9}{:+.9}j (|z| = {:.9}, {:.4} Hz)",
+            self.re, self.im, self.abs, self.f_hz
+        )
+    }
+}
+
+/// A gain crossover (|L| = 1) and its phase margin.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct GainCrossover {
+    /// Frequency, Hz.
+    pub f_hz: f64,
+    /// `180 + arg L`, wrapped to (-180, 180], degrees.
+    pub phase_margin_deg: f64,
+}
+
+/// A phase crossover (L real and negative) and its gain margin.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct PhaseCrossover {
+    /// Frequency, Hz.
+    pub f_hz: f64,
+    /// `-20 log10 |L|`, dB.
+    pub gain_margin_db: f64,
+}
+
+/// |T| and its phase at one frequency.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct FrequencyValue {
+    /// Frequency, Hz.
+    pub f_hz: f64,
+    /// |T|, dB.
+    pub magnitude_db: f64,
+    /// arg T, degrees.
+    pub phase_deg: f64,
+}
+
+/// Everything `scanhil analyze` reports about the nominal closed loop.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct LoopReport {
+    /// All closed-loop poles inside the unit circle.
+    pub stable: bool,
+    /// The largest closed-loop pole magnitude.
+    pub spectral_radius: f64,
+    /// Gain crossovers, lowest frequency first.
+    pub gain_crossovers: Vec<GainCrossover>,
+    /// Phase crossovers, lowest frequency first.
+    pub phase_crossovers: Vec<PhaseCrossover>,
+    /// The highest gain crossover, Hz (the loop's crossover frequency).
+    pub crossover_hz: Option<f64>,
+    /// The smallest phase margin over the gain crossovers, degrees.
+    pub phase_margin_deg: Option<f64>,
+    /// The smallest gain margin over the phase crossovers where |L| < 1 (how much more gain
+    /// the loop takes), dB. Crossovers with |L| > 1 (conditional stability) are in the list.
+    pub gain_margin_db: Option<f64>,
+    /// The highest frequency where |T| falls through -3 dB, Hz.
+    pub bandwidth_3db_hz: Option<f64>,
+    /// max |T|, dB.
+    pub peak_db: f64,
+    /// Where max |T| is, Hz.
+    pub peak_hz: f64,
+    /// T at the frequencies asked for.
+    pub at: Vec<FrequencyValue>,
+    /// The closed-loop poles.
+    pub closed_loop_poles: Vec<ZPoint>,
+}
+
+/// The nominal loop `L = C P` of one axis.
+#[derive(Debug, Clone)]
+pub struct NominalLoop {
+    controller: Cascade,
+    plant: Cascade,
+    period_s: f64,
+}
+
+impl NominalLoop {
+    /// The loop of `controller` (error to command) around `plant` (command to measurement).
+    #[must_use]
+    pub fn new(controller: Cascade, plant: Cascade, period_s: f64) -> Self {
+        Self {
+            controller,
+            plant,
+            period_s,
+        }
+    }
+
+    /// The loop gain `L = C P` at `f_hz`.
+    #[must_use]
+    pub fn loop_gain(&self, f_hz: f64) -> Complex<f64> {
+        self.controller.response(f_hz, self.period_s) * self.plant.response(f_hz, self.period_s)
+    }
+
+    /// The complementary sensitivity `T = L / (1 + L)` at `f_hz`.
+    #[must_use]
+    pub fn complementary(&self, f_hz: f64) -> Complex<f64> {
+        let l = self.loop_gain(f_hz);
+        l / (l + 1.0)
+    }
+
+    /// The closed-loop poles: eigenvalues of the loop's state matrix (the plant has no
+    /// feed-through, so the loop is well posed).
+    #[must_use]
+    pub fn closed_loop_poles(&self) -> Vec<Complex<f64>> {
+        let c = self.controller.state_space();
+        let p = self.plant.state_space();
+        let (nc, np) = (c.order(), p.order());
+        let mut a = DMatrix::zeros(nc + np, nc + np);
+        // u = Cc xc + Dc (r - Cp xp); xp' = Ap xp + Bp u; xc' = Ac xc + Bc (r - Cp xp)
+        a.view_mut((0, 0), (np, np))
+            .copy_from(&(&p.a - &p.b * &p.c * c.d));
+        a.view_mut((0, np), (np, nc)).copy_from(&(&p.b * &c.c));
+        a.view_mut((np, 0), (nc, np)).copy_from(&(-(&c.b * &p.c)));
+        a.view_mut((np, np), (nc, nc)).copy_from(&c.a);
+        a.complex_eigenvalues().iter().copied().collect()
+    }
+
+    /// The analysis frequency grid: log spaced from 0.1 Hz to just below Nyquist, plus fine
+    /// linear grids around lightly damped controller poles (tones are millihertz wide).
+    #[must_use]
+    pub fn frequency_grid(&self) -> Vec<f64> {
+        let nyquist = 0.5 / self.period_s;
+        let n = 6000;
+        let (lo, hi) = (0.1f64.log10(), (0.999 * nyquist).log10());
+        let mut grid: Vec<f64> = (0..n)
+            .map(|i| 10f64.powf(lo + (hi - lo) * i as f64 / (n - 1) as f64))
+            .collect();
+        for pole in self.controller.poles() {
+            let zp = ZPoint::new(pole, self.period_s);
+            if pole.im > 0.0 && zp.damping.abs() < 0.05 {
+                let half_width = (zp.f_hz * 0.02).max(0.05);
+                grid.extend(
+                    (0..=2000)
+                        .map(|i| zp.f_hz - half_width + 2.0 * half_width * f64::from(i) / 2000.0),
+                );
+            }
+        }
+        grid.retain(|f| *f > 0.0 && *f < nyquist);
+        grid.sort_by(f64::total_cmp);
+        grid.dedup();
+        grid
+    }
+
+    /// Finds the root of `g` between `a` and `b` (a sign change) by bisection.
+    fn bisect(g: impl Fn(f64) -> f64, mut a: f64, mut b: f64) -> f64 {
+        let ga = g(a);
+        for _ in 0..60 {
+            let m = 0.5 * (a + b);
+            if (g(m) > 0.0) == (ga > 0.0) {
+                a = m;
+            } else {
+                b = m;
+            }
+        }
+        0.5 * (a + b)
+    }
+
+    /// The full report, with T evaluated at `at_hz`.
+    #[must_use]
+    pub fn report(&self, at_hz: &[f64]) -> LoopReport {
+        let grid = self.frequency_grid();
+        let poles = self.closed_loop_poles();
+        let spectral_radius = poles.iter().map(|p| p.norm()).fold(0.0, f64::max);
+        let log_mag = |f: f64| self.loop_gain(f).norm().ln();
+        let imag = |f: f64| self.loop_gain(f).im;
+        let t_db = |f: f64| 20.0 * self.complementary(f).norm().log10() + 3.0103;
+        let mut gain_crossovers = Vec::new();
+        let mut phase_crossovers = Vec::new();
+        let mut bandwidth = None;
+        let (mut peak_db, mut peak_hz) = (f64::NEG_INFINITY, 0.0);
+        for w in grid.windows(2) {
+            let (f0, f1) = (w[0], w[1]);
+            if (log_mag(f0) > 0.0) != (log_mag(f1) > 0.0) {
+                let f = Self::bisect(log_mag, f0, f1);
+                let arg = self.loop_gain(f).arg().to_degrees();
+                let pm = (180.0 + arg + 180.0).rem_euclid(360.0) - 180.0;
+                gain_crossovers.push(GainCrossover {
+                    f_hz: f,
+                    phase_margin_deg: pm,
+                });
+            }
+            if (imag(f0) > 0.0) != (imag(f1) > 0.0) {
+                let f = Self::bisect(imag, f0, f1);
+                let l = self.loop_gain(f);
+                if l.re < 0.0 {
+                    phase_crossovers.push(PhaseCrossover {
+                        f_hz: f,
+                        gain_margin_db: -20.0 * l.norm().log10(),
+                    });
+                }
+            }
+            if t_db(f0) > 0.0 && t_db(f1) <= 0.0 {
+                bandwidth = Some(Self::bisect(t_db, f0, f1));
+            }
+            let db = 20.0 * self.complementary(f0).norm().log10();
+            if db > peak_db {
+                (peak_db, peak_hz) = (db, f0);
+            }
+        }
+        let at = at_hz
+            .iter()
+            .map(|&f| {
+                let t = self.complementary(f);
+                FrequencyValue {
+                    f_hz: f,
+                    magnitude_db: 20.0 * t.norm().log10(),
+                    phase_deg: t.arg().to_degrees(),
+                }
+            })
+            .collect();
+        LoopReport {
+            stable: spectral_radius < 1.0,
+            spectral_radius,
+            crossover_hz: gain_crossovers.last().map(|c| c.f_hz),
+            phase_margin_deg: gain_crossovers
+                .iter()
+                .map(|c| c.phase_margin_deg)
+                .reduce(f64::min),
+            gain_margin_db: phase_crossovers
+                .iter()
+                .map(|c| c.gain_margin_db)
+                .filter(|gm| *gm > 0.0)
+                .reduce(f64::min),
+            gain_crossovers,
+            phase_crossovers,
+            bandwidth_3db_hz: bandwidth,
+            peak_db,
+            peak_hz,
+            at,
+            closed_loop_poles: poles
+                .iter()
+                .map(|&p| ZPoint::new(p, self.period_s))
+                .collect(),
+        }
+    }
+
+    /// Bode data of T on the analysis grid: (f Hz, |T| dB, unwrapped phase deg).
+    #[must_use]
+    pub fn bode(&self) -> Vec<(f64, f64, f64)> {
+        let mut out = Vec::new();
+        let mut previous = 0.0;
+        let mut offset = 0.0;
+        for f in self.frequency_grid() {
+            let t = self.complementary(f);
+            let raw = t.arg().to_degrees();
+            if !out.is_empty() {
+                let jump = raw + offset - previous;
+                offset -= 360.0 * (jump / 360.0).round();
+            }
+            previous = raw + offset;
+            out.push((f, 20.0 * t.norm().log10(), previous));
+        }
+        out
+    }
+}

@@ -1,0 +1,361 @@
+//! Reference trajectories for the two sensing axes (mechanical mirror angles in rad) and the
+//! figures derived from their definition alone: frame rate and line spacing.
+//!
+//! Axes: `alpha` moves the spot along y (the paper's 52 Hz Lissajous axis), `beta` along x
+//! (27 Hz). Spacings are fractions of the image side along that axis; with a scan range in mm
+//! they are also given in mm.
+
+use scanhil_protocol::plant_units::{FULL_RANGE_DEG, SensingPair};
+use std::f64::consts::{PI, TAU};
+
+/// One of the two sensing axes.
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
+#[serde(rename_all = "snake_case")]
+pub enum SensingAxis {
+    /// Tilt about x: the spot moves along y.
+    Alpha,
+    /// Tilt about yz': the spot moves along x.
+    Beta,
+}
+
+impl SensingAxis {
+    /// `value` on this axis, zero on the other.
+    #[must_use]
+    pub fn pair(self, value: f64) -> SensingPair {
+        match self {
+            SensingAxis::Alpha => SensingPair {
+                alpha: value,
+                beta: 0.0,
+            },
+            SensingAxis::Beta => SensingPair {
+                alpha: 0.0,
+                beta: value,
+            },
+        }
+    }
+
+    /// This axis' value of `pair`.
+    #[must_use]
+    pub fn of(self, pair: SensingPair) -> f64 {
+        match self {
+            SensingAxis::Alpha => pair.alpha,
+            SensingAxis::Beta => pair.beta,
+        }
+    }
+
+    /// The other axis.
+    #[must_use]
+    pub fn other(self) -> SensingAxis {
+        match self {
+            SensingAxis::Alpha => SensingAxis::Beta,
+            SensingAxis::Beta => SensingAxis::Alpha,
+        }
+    }
+}
+
+fn full_range_rad() -> f64 {
+    FULL_RANGE_DEG.to_radians()
+}
+
+fn default_alpha() -> SensingAxis {
+    SensingAxis::Alpha
+}
+
+/// A reference trajectory (`"kind": "lissajous"`, ...); amplitudes default to the mirror's
+/// full +-1.5 deg range.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Trajectory {
+    /// `alpha = A_a sin(2 pi f_a t)`, `beta = A_b sin(2 pi f_b t + phase)`.
+    Lissajous {
+        /// Frequency on alpha (y), Hz (52 in the paper).
+        alpha_hz: f64,
+        /// Frequency on beta (x), Hz (27 in the paper).
+        beta_hz: f64,
+        /// Amplitude on alpha, rad.
+        #[serde(default = "full_range_rad")]
+        alpha_amplitude_rad: f64,
+        /// Amplitude on beta, rad.
+        #[serde(default = "full_range_rad")]
+        beta_amplitude_rad: f64,
+        /// Phase of beta against alpha, rad.
+        #[serde(default)]
+        relative_phase_rad: f64,
+    },
+    /// Slow and fast triangles (each starts at -amplitude); every half period of the fast one
+    /// is one line.
+    Raster {
+        /// The slow triangle's frequency, Hz (2 in the paper).
+        slow_hz: f64,
+        /// The fast triangle's frequency, Hz (34 in the paper).
+        fast_hz: f64,
+        /// The axis that carries the slow triangle.
+        slow_axis: SensingAxis,
+        /// Amplitude on alpha, rad.
+        #[serde(default = "full_range_rad")]
+        alpha_amplitude_rad: f64,
+        /// Amplitude on beta, rad.
+        #[serde(default = "full_range_rad")]
+        beta_amplitude_rad: f64,
+    },
+    /// A step of `amplitude_rad` on one axis at `at_s`.
+    Step {
+        /// The stepped axis.
+        #[serde(default = "default_alpha")]
+        axis: SensingAxis,
+        /// Step height, rad.
+        amplitude_rad: f64,
+        /// When the step happens, s.
+        #[serde(default)]
+        at_s: f64,
+    },
+    /// A sine on one axis.
+    Sine {
+        /// The driven axis.
+        #[serde(default = "default_alpha")]
+        axis: SensingAxis,
+        /// Frequency, Hz.
+        frequency_hz: f64,
+        /// Amplitude, rad.
+        amplitude_rad: f64,
+    },
+    /// A logarithmic sine sweep on one axis from `start_hz` to `stop_hz` over `duration_s`,
+    /// then zero.
+    SweptSine {
+        /// The driven axis.
+        #[serde(default = "default_alpha")]
+        axis: SensingAxis,
+        /// Start frequency, Hz.
+        start_hz: f64,
+        /// Stop frequency, Hz.
+        stop_hz: f64,
+        /// Sweep duration, s.
+        duration_s: f64,
+        /// Amplitude, rad.
+        amplitude_rad: f64,
+    },
+}
+
+/// A triangle of period `1/f_hz` between -1 and 1, starting at -1.
+fn triangle(f_hz: f64, t_s: f64) -> f64 {
+    let phase = (f_hz * t_s).rem_euclid(1.0);
+    if phase < 0.5 {
+        4.0 * phase - 1.0
+    } else {
+        3.0 - 4.0 * phase
+    }
+}
+
+/// Figures derived from a trajectory's definition.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct TrajectoryFigures {
+    /// The trajectory kind.
+    pub kind: &'static str,
+    /// Time for one complete image, s (Lissajous: the pattern's period `1/gcd`; raster: one
+    /// slow sweep). None for single-axis references.
+    pub frame_time_s: Option<f64>,
+    /// Complete images per second.
+    pub frame_rate_hz: Option<f64>,
+    /// Raster: lines per slow sweep (`fast_hz / slow_hz`).
+    pub lines_per_frame: Option<f64>,
+    /// Line spacing along y (the alpha axis) at the image centre, fraction of the image side.
+    pub spacing_alpha_fraction: Option<f64>,
+    /// Line spacing along x (the beta axis) at the image centre, fraction of the image side.
+    pub spacing_beta_fraction: Option<f64>,
+    /// The coarser of the two spacings (the paper's "resolution").
+    pub resolution_fraction: Option<f64>,
+    /// Scan range (x along beta, y along alpha) the mm figures use, mm.
+    pub scan_range_mm: Option<(f64, f64)>,
+    /// Spacing along y in mm.
+    pub spacing_alpha_mm: Option<f64>,
+    /// Spacing along x in mm.
+    pub spacing_beta_mm: Option<f64>,
+    /// The coarser spacing in mm.
+    pub resolution_mm: Option<f64>,
+}
+
+/// The common period of two frequencies, s, when both are multiples of 1 mHz.
+fn common_period_s(f1_hz: f64, f2_hz: f64) -> Option<f64> {
+    let to_mhz = |f: f64| {
+        let m = (f * 1000.0).round();
+        ((f * 1000.0 - m).abs() < 1e-6 && m > 0.0).then_some(m as u64)
+    };
+    let (a, b) = (to_mhz(f1_hz)?, to_mhz(f2_hz)?);
+    let gcd = (1..).try_fold(
+        (a, b),
+        |(x, y), _: u32| if y == 0 { Err(x) } else { Ok((y, x % y)) },
+    );
+    let g = gcd.err()?;
+    Some(1000.0 / g as f64)
+}
+
+/// The spacing, at the image centre, of the values `other(t)` takes where `driven(t)` crosses
+/// zero: `driven = sin(2 pi f t + phase)` over `period_s`. Returned as a fraction of the image
+/// side (values are normalised to [-1, 1]).
+fn centre_spacing(f_hz: f64, phase_rad: f64, period_s: f64, other: impl Fn(f64) -> f64) -> f64 {
+    let crossings = (2.0 * f_hz * period_s).round() as i64;
+    let mut values: Vec<f64> = (0..crossings)
+        .map(|k| (k as f64 * PI - phase_rad).rem_euclid(TAU * f_hz * period_s) / (TAU * f_hz))
+        .map(other)
+        .collect();
+    values.sort_by(f64::total_cmp);
+    values.dedup_by(|a, b| (*a - *b).abs() < 1e-9);
+    let above = values
+        .iter()
+        .position(|v| *v > 1e-9)
+        .unwrap_or(values.len());
+    let at_zero = above > 0 && values[above - 1].abs() <= 1e-9;
+    let gap = |i: usize, j: usize| values.get(j).zip(values.get(i)).map(|(b, a)| b - a);
+    let spacing = if at_zero {
+        let i = above - 1;
+        gap(i, i + 1)
+            .into_iter()
+            .chain(i.checked_sub(1).and_then(|h| gap(h, i)))
+            .fold(0.0, f64::max)
+    } else {
+        above
+            .checked_sub(1)
+            .and_then(|i| gap(i, above))
+            .unwrap_or(2.0)
+    };
+    spacing / 2.0
+}
+
+impl Trajectory {
+    /// The reference mirror angles at `t_s`, rad.
+    #[must_use]
+    pub fn reference_rad(&self, t_s: f64) -> SensingPair {
+        match *self {
+            Trajectory::Lissajous {
+                alpha_hz,
+                beta_hz,
+                alpha_amplitude_rad,
+                beta_amplitude_rad,
+                relative_phase_rad,
+            } => SensingPair {
+                alpha: alpha_amplitude_rad * (TAU * alpha_hz * t_s).sin(),
+                beta: beta_amplitude_rad * (TAU * beta_hz * t_s + relative_phase_rad).sin(),
+            },
+            Trajectory::Raster {
+                slow_hz,
+                fast_hz,
+                slow_axis,
+                alpha_amplitude_rad,
+                beta_amplitude_rad,
+            } => {
+                let (slow, fast) = (triangle(slow_hz, t_s), triangle(fast_hz, t_s));
+                let (alpha, beta) = match slow_axis {
+                    SensingAxis::Alpha => (slow, fast),
+                    SensingAxis::Beta => (fast, slow),
+                };
+                SensingPair {
+                    alpha: alpha * alpha_amplitude_rad,
+                    beta: beta * beta_amplitude_rad,
+                }
+            }
+            Trajectory::Step {
+                axis,
+                amplitude_rad,
+                at_s,
+            } => axis.pair(if t_s >= at_s { amplitude_rad } else { 0.0 }),
+            Trajectory::Sine {
+                axis,
+                frequency_hz,
+                amplitude_rad,
+            } => axis.pair(amplitude_rad * (TAU * frequency_hz * t_s).sin()),
+            Trajectory::SweptSine {
+                axis,
+                start_hz,
+                stop_hz,
+                duration_s,
+                amplitude_rad,
+            } => {
+                if !(0.0..duration_s).contains(&t_s) {
+                    return SensingPair::default();
+                }
+                let ratio_ln = (stop_hz / start_hz).ln();
+                let phase = TAU * start_hz * duration_s / ratio_ln
+                    * ((ratio_ln * t_s / duration_s).exp() - 1.0);
+                axis.pair(amplitude_rad * phase.sin())
+            }
+        }
+    }
+
+    /// Frame rate and line spacing from the definition; `scan_range_mm` = (x along beta,
+    /// y along alpha) adds the spacings in mm.
+    #[must_use]
+    pub fn figures(&self, scan_range_mm: Option<(f64, f64)>) -> TrajectoryFigures {
+        let mut fig = TrajectoryFigures {
+            kind: "",
+            frame_time_s: None,
+            frame_rate_hz: None,
+            lines_per_frame: None,
+            spacing_alpha_fraction: None,
+            spacing_beta_fraction: None,
+            resolution_fraction: None,
+            scan_range_mm,
+            spacing_alpha_mm: None,
+            spacing_beta_mm: None,
+            resolution_mm: None,
+        };
+        match *self {
+            Trajectory::Lissajous {
+                alpha_hz,
+                beta_hz,
+                relative_phase_rad,
+                ..
+            } => {
+                fig.kind = "lissajous";
+                if let Some(period) = common_period_s(alpha_hz, beta_hz) {
+                    fig.frame_time_s = Some(period);
+                    fig.frame_rate_hz = Some(1.0 / period);
+                    // Along y: alpha values where beta crosses zero (the centre column).
+                    fig.spacing_alpha_fraction =
+                        Some(centre_spacing(beta_hz, relative_phase_rad, period, |t| {
+                            (TAU * alpha_hz * t).sin()
+                        }));
+                    // Along x: beta values where alpha crosses zero (the centre row).
+                    fig.spacing_beta_fraction = Some(centre_spacing(alpha_hz, 0.0, period, |t| {
+                        (TAU * beta_hz * t + relative_phase_rad).sin()
+                    }));
+                }
+            }
+            Trajectory::Raster {
+                slow_hz,
+                fast_hz,
+                slow_axis,
+                ..
+            } => {
+                fig.kind = "raster";
+                let sweep = 0.5 / slow_hz;
+                let lines = fast_hz / slow_hz;
+                fig.frame_time_s = Some(sweep);
+                fig.frame_rate_hz = Some(1.0 / sweep);
+                fig.lines_per_frame = Some(lines);
+                let spacing = Some(1.0 / lines);
+                match slow_axis {
+                    SensingAxis::Alpha => fig.spacing_alpha_fraction = spacing,
+                    SensingAxis::Beta => fig.spacing_beta_fraction = spacing,
+                }
+            }
+            Trajectory::Step { .. } => fig.kind = "step",
+            Trajectory::Sine { .. } => fig.kind = "sine",
+            Trajectory::SweptSine { .. } => fig.kind = "swept_sine",
+        }
+        fig.resolution_fraction = match (fig.spacing_alpha_fraction, fig.spacing_beta_fraction) {
+            (Some(a), Some(b)) => Some(a.max(b)),
+            (a, b) => a.or(b),
+        };
+        if let Some((x_mm, y_mm)) = scan_range_mm {
+            fig.spacing_alpha_mm = fig.spacing_alpha_fraction.map(|s| s * y_mm);
+            fig.spacing_beta_mm = fig.spacing_beta_fraction.map(|s| s * x_mm);
+            fig.resolution_mm = match (fig.spacing_alpha_mm, fig.spacing_beta_mm) {
+                (Some(a), Some(b)) => Some(a.max(b)),
+                (a, b) => a.or(b),
+            };
+        }
+        fig
+    }
+}
