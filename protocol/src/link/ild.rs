@@ -62,7 +62,8 @@ pub struct IldCounters {
     pub sync_losses: u64,
     /// Cycles delivered with fewer values than configured.
     pub incomplete_cycles: u64,
-    /// Values dropped because the start of their cycle was lost.
+    /// Values dropped because the start of their cycle was lost, or because the cycle already
+    /// had the configured number of values.
     pub orphan_values: u64,
 }
 

@@ -37,7 +37,7 @@ impl PtyPair {
             source: e.into(),
             hint: String::new(),
         };
-        let master = nix::pty::posix_openpt(OFlag::O_RDWR | OFlag::O_NOCTTY)
+        let master = nix::pty::posix_openpt(OFlag::O_RDWR | OFlag::O_NOCTTY | OFlag::O_CLOEXEC)
             .map_err(|e| fail("/dev/ptmx", e))?;
         nix::pty::grantpt(&master).map_err(|e| fail("/dev/ptmx", e))?;
         nix::pty::unlockpt(&master).map_err(|e| fail("/dev/ptmx", e))?;

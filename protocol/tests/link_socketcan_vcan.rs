@@ -1,0 +1,120 @@
+//! SocketCAN links over a live `vcan0` (cargo feature `vcan`). They run inside the throwaway
+//! VM (`ci/vm/socketcan-tests.sh`) or on a host whose kernel has CAN and whose vcan0 is up
+//! (`modprobe vcan; ip link add dev vcan0 type vcan; ip link set up vcan0`). Without vcan0
+//! they fail: nothing is skipped.
+#![cfg(feature = "vcan")]
+
+mod vcan {
+    use std::io::{self, Write};
+    use std::sync::{Arc, Mutex};
+    use std::time::{Duration, Instant};
+
+    use scanhil_protocol::can::{CanFrame, CanId};
+    use scanhil_protocol::candump;
+    use scanhil_protocol::link::{
+        CanCapture, CanLink, CaptureClock, LinkUri, RecvError, Role, VirtualClock, Watchdog,
+    };
+
+    /// The tests share one bus: one at a time, or they would see each other's frames.
+    static BUS: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
+
+    async fn two_nodes() -> (CanLink, CanLink) {
+        let uri: LinkUri = "socketcan:vcan0@1M".parse().unwrap();
+        let a = CanLink::open(&uri, Role::Host)
+            .await
+            .expect("vcan0 must be up");
+        let b = CanLink::open(&uri, Role::Device).await.unwrap();
+        (a, b)
+    }
+
+    fn frames() -> Vec<CanFrame> {
+        let std_id = CanId::standard(0x110).unwrap();
+        let ext_id = CanId::extended(0x1ABC_DEF0).unwrap();
+        vec![
+            CanFrame::new(std_id, &[1, 2, 3, 4, 5, 6, 7, 8]).unwrap(),
+            CanFrame::new(ext_id, &[9]).unwrap(),
+            CanFrame::new(std_id, &[]).unwrap(),
+            CanFrame::new_remote(std_id, 4).unwrap(),
+            CanFrame::new_fd(std_id, &[0xA5; 16], true, false).unwrap(),
+            CanFrame::new_fd(ext_id, &[0x3C; 64], false, true).unwrap(),
+        ]
+    }
+
+    #[tokio::test]
+    async fn vcan_frames_cross_both_ways_in_order() {
+        let _bus = BUS.lock().await;
+        let (mut a, mut b) = two_nodes().await;
+        assert_eq!(a.bus_bitrate(), Some(1_000_000));
+        for frame in frames() {
+            a.send(&frame).await.unwrap();
+        }
+        for expected in frames() {
+            assert_eq!(b.recv().await.unwrap(), expected);
+        }
+        for k in 0..1000u16 {
+            let frame = CanFrame::new(CanId::standard(0x100).unwrap(), &k.to_le_bytes()).unwrap();
+            b.send(&frame).await.unwrap();
+            assert_eq!(a.recv().await.unwrap(), frame);
+        }
+        assert_eq!(a.stats().frames_received, 1000);
+        assert_eq!(b.stats().frames_sent, 1000);
+    }
+
+    #[tokio::test]
+    async fn vcan_timeouts_and_watchdog_fire_on_a_quiet_bus() {
+        let _bus = BUS.lock().await;
+        let (mut a, _b) = two_nodes().await;
+        let started = Instant::now();
+        assert!(
+            a.recv_timeout(Duration::from_millis(30))
+                .await
+                .unwrap()
+                .is_none()
+        );
+        assert!(started.elapsed() >= Duration::from_millis(30));
+        assert!(a.try_recv().unwrap().is_none());
+        let mut watchdog = Watchdog::new(a.name(), Duration::from_millis(1), 20);
+        let Err(RecvError::Timeout(timeout)) = a.recv_watched(&mut watchdog).await else {
+            panic!("the watchdog did not fire");
+        };
+        assert!(timeout.to_string().contains("socketcan:vcan0"), "{timeout}");
+    }
+
+    /// A writer whose bytes the test reads back.
+    #[derive(Clone, Default)]
+    struct Shared(Arc<Mutex<Vec<u8>>>);
+
+    impl Write for Shared {
+        fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+            self.0.lock().unwrap().extend_from_slice(buf);
+            Ok(buf.len())
+        }
+        fn flush(&mut self) -> io::Result<()> {
+            Ok(())
+        }
+    }
+
+    #[tokio::test]
+    async fn vcan_capture_writes_candump_lines() {
+        let _bus = BUS.lock().await;
+        let (mut a, mut b) = two_nodes().await;
+        let log = Shared::default();
+        let clock = VirtualClock::default();
+        b.set_capture(CanCapture::new(
+            log.clone(),
+            "vcan0",
+            CaptureClock::Virtual(clock.clone()),
+        ));
+        for (k, frame) in frames().iter().enumerate() {
+            clock.set(Duration::from_micros(50 * k as u64));
+            a.send(frame).await.unwrap();
+            b.recv().await.unwrap();
+        }
+        let text = String::from_utf8(log.0.lock().unwrap().clone()).unwrap();
+        let logged: Vec<CanFrame> = text
+            .lines()
+            .map(|line| candump::parse_line(line).unwrap().frame)
+            .collect();
+        assert_eq!(logged, frames());
+    }
+}
