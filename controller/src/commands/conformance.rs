@@ -67,6 +67,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         },
         period_s: 1.0 / args.rate_hz,
         duration_s: 0.0,
+        record_dir: None,
     };
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -78,7 +79,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         let results = run_checks(&mut links.mirror, sensor).await;
         drop(links.mirror);
         if let Some(process) = links.emulator {
-            finish_emulator(process, links.ready_lines).await?;
+            finish_emulator(process, links.emulator_lines).await?;
         }
         anyhow::Ok(results)
     })?;

@@ -51,7 +51,10 @@ pub struct CheckResult {
 }
 
 /// Runs the mirror node's checks and, when given, the sensor's.
-pub async fn run_checks(mirror: &mut MirrorLink, mut sensor: Option<&mut SensorLink>) -> Vec<CheckResult> {
+pub async fn run_checks(
+    mirror: &mut MirrorLink,
+    mut sensor: Option<&mut SensorLink>,
+) -> Vec<CheckResult> {
     let mut results = Vec::new();
     let mut k = 0u64;
     // Timing, sequence, range, status (and the sensor stream alongside).
@@ -73,8 +76,13 @@ pub async fn run_checks(mirror: &mut MirrorLink, mut sensor: Option<&mut SensorL
         match exchange {
             Ok(angles) => {
                 let finite = angles.alpha.is_finite() && angles.beta.is_finite();
-                if out_of_range.is_none() && (!finite || angles.alpha.abs() > limit_rad || angles.beta.abs() > limit_rad) {
-                    out_of_range = Some(format!("period {k}: alpha {} rad, beta {} rad", angles.alpha, angles.beta));
+                if out_of_range.is_none()
+                    && (!finite || angles.alpha.abs() > limit_rad || angles.beta.abs() > limit_rad)
+                {
+                    out_of_range = Some(format!(
+                        "period {k}: alpha {} rad, beta {} rad",
+                        angles.alpha, angles.beta
+                    ));
                 }
             }
             Err(error) => {
@@ -97,7 +105,10 @@ pub async fn run_checks(mirror: &mut MirrorLink, mut sensor: Option<&mut SensorL
         name: "angle_sequence_gapless",
         node: "fsm",
         passed: counters.angle_sequence_gaps == 0 && counters.angle_readings >= k,
-        detail: format!("{} readings, {} out of sequence", counters.angle_readings, counters.angle_sequence_gaps),
+        detail: format!(
+            "{} readings, {} out of sequence",
+            counters.angle_readings, counters.angle_sequence_gaps
+        ),
         time_s: 0.0,
     });
     results.push(CheckResult {
@@ -107,7 +118,11 @@ pub async fn run_checks(mirror: &mut MirrorLink, mut sensor: Option<&mut SensorL
         detail: out_of_range.unwrap_or_else(|| format!("all within +-{:.3} mrad", limit_rad * 1e3)),
         time_s: 0.0,
     });
-    let statuses = mirror.events().iter().filter(|e| e.status.is_some()).count();
+    let statuses = mirror
+        .events()
+        .iter()
+        .filter(|e| e.status.is_some())
+        .count();
     results.push(CheckResult {
         name: "status_frames",
         node: "fsm",
@@ -118,7 +133,10 @@ pub async fn run_checks(mirror: &mut MirrorLink, mut sensor: Option<&mut SensorL
     // Over-current fault.
     let t0 = Instant::now();
     let faults_before = fault_count(mirror, FaultKind::OverCurrent);
-    let big = ActuatorPair { a: OVER_CURRENT_A, b: -OVER_CURRENT_A };
+    let big = ActuatorPair {
+        a: OVER_CURRENT_A,
+        b: -OVER_CURRENT_A,
+    };
     let mut over_current_error = None;
     for _ in 0..3 {
         if let Err(error) = mirror.exchange_lockstep(k, big).await {
@@ -128,7 +146,11 @@ pub async fn run_checks(mirror: &mut MirrorLink, mut sensor: Option<&mut SensorL
         k += 1;
     }
     for _ in 0..3 {
-        if mirror.exchange_lockstep(k, ActuatorPair::default()).await.is_ok() {
+        if mirror
+            .exchange_lockstep(k, ActuatorPair::default())
+            .await
+            .is_ok()
+        {
             k += 1;
         }
     }
@@ -138,7 +160,11 @@ pub async fn run_checks(mirror: &mut MirrorLink, mut sensor: Option<&mut SensorL
         node: "fsm",
         passed: raised && over_current_error.is_none(),
         detail: over_current_error.unwrap_or_else(|| {
-            if raised { format!("OverCurrent fault frame after a {OVER_CURRENT_A} A command") } else { format!("no OverCurrent fault after a {OVER_CURRENT_A} A command") }
+            if raised {
+                format!("OverCurrent fault frame after a {OVER_CURRENT_A} A command")
+            } else {
+                format!("no OverCurrent fault after a {OVER_CURRENT_A} A command")
+            }
         }),
         time_s: t0.elapsed().as_secs_f64(),
     });
@@ -147,10 +173,7 @@ pub async fn run_checks(mirror: &mut MirrorLink, mut sensor: Option<&mut SensorL
     let survived = match mirror.send_malformed(k).await {
         Err(error) => Err(format!("sending malformed input: {error}")),
         Ok(sent) => match mirror.exchange_lockstep(k, ActuatorPair::default()).await {
-            Ok(_) => {
-                k += 1;
-                Ok(format!("{sent}; still answering"))
-            }
+            Ok(_) => Ok(format!("{sent}; still answering")),
             Err(error) => Err(format!("{sent}; then: {error}")),
         },
     };
@@ -180,18 +203,27 @@ pub async fn run_checks(mirror: &mut MirrorLink, mut sensor: Option<&mut SensorL
 }
 
 fn fault_count(mirror: &MirrorLink, kind: FaultKind) -> usize {
-    mirror.events().iter().filter(|e| e.fault == Some(kind)).count()
+    mirror
+        .events()
+        .iter()
+        .filter(|e| e.fault == Some(kind))
+        .count()
 }
 
 fn sensor_checks(sensor: &SensorLink) -> Vec<CheckResult> {
     let (samples, counters) = sensor.snapshot();
-    let bad = samples.iter().find(|s| matches!(s.value, IldValue::Error(IldError::Unknown(_))));
+    let bad = samples
+        .iter()
+        .find(|s| matches!(s.value, IldValue::Error(IldError::Unknown(_))));
     vec![
         CheckResult {
             name: "sensor_values_decode",
             node: "sensor",
-            passed: counters.samples > 0 && counters.resync_bytes == 0,
-            detail: format!("{} bytes, {} samples, {} bytes skipped", counters.bytes, counters.samples, counters.resync_bytes),
+            passed: counters.samples > 0 && counters.resync_bytes == 0 && counters.incomplete_cycles == 0,
+            detail: format!(
+                "{} samples, {} bytes skipped, {} incomplete cycles",
+                counters.samples, counters.resync_bytes, counters.incomplete_cycles
+            ),
             time_s: 0.0,
         },
         CheckResult {
@@ -205,7 +237,10 @@ fn sensor_checks(sensor: &SensorLink) -> Vec<CheckResult> {
             name: "sensor_values_in_range",
             node: "sensor",
             passed: bad.is_none() && counters.samples > 0,
-            detail: bad.map_or_else(|| "every value a distance or a known error code".to_owned(), |s| format!("unknown error code {}", s.value.raw())),
+            detail: bad.map_or_else(
+                || "every value a distance or a known error code".to_owned(),
+                |s| format!("unknown error code {}", s.value.raw()),
+            ),
             time_s: 0.0,
         },
     ]
@@ -216,10 +251,22 @@ fn sensor_checks(sensor: &SensorLink) -> Vec<CheckResult> {
 pub fn table(results: &[CheckResult]) -> String {
     let mut text = format!("{:<6} {:<28} {:<6} detail\n", "node", "check", "result");
     for r in results {
-        let _ = writeln!(text, "{:<6} {:<28} {:<6} {}", r.node, r.name, if r.passed { "PASS" } else { "FAIL" }, r.detail);
+        let _ = writeln!(
+            text,
+            "{:<6} {:<28} {:<6} {}",
+            r.node,
+            r.name,
+            if r.passed { "PASS" } else { "FAIL" },
+            r.detail
+        );
     }
     let failed = results.iter().filter(|r| !r.passed).count();
-    let _ = write!(text, "{} checks, {} passed, {failed} failed", results.len(), results.len() - failed);
+    let _ = write!(
+        text,
+        "{} checks, {} passed, {failed} failed",
+        results.len(),
+        results.len() - failed
+    );
     text
 }
 
@@ -233,16 +280,31 @@ pub fn junit_xml(results: &[CheckResult]) -> String {
         results.len()
     );
     for r in results {
-        let _ = write!(xml, "    <testcase classname=\"{}\" name=\"{}\" time=\"{:.6}\"", r.node, r.name, r.time_s);
+        let _ = write!(
+            xml,
+            "    <testcase classname=\"{}\" name=\"{}\" time=\"{:.6}\"",
+            r.node, r.name, r.time_s
+        );
         if r.passed {
-            let _ = writeln!(xml, "><system-out>{}</system-out></testcase>", escape(&r.detail));
+            let _ = writeln!(
+                xml,
+                "><system-out>{}</system-out></testcase>",
+                escape(&r.detail)
+            );
         } else {
-            let _ = writeln!(xml, "><failure message=\"{}\"/></testcase>", escape(&r.detail));
+            let _ = writeln!(
+                xml,
+                "><failure message=\"{}\"/></testcase>",
+                escape(&r.detail)
+            );
         }
     }
     xml + "  </testsuite>\n</testsuites>\n"
 }
 
 fn escape(text: &str) -> String {
-    text.replace('&', "&amp;").replace('<', "&lt;").replace('>', "&gt;").replace('"', "&quot;")
+    text.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+        .replace('"', "&quot;")
 }

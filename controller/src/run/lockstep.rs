@@ -5,9 +5,9 @@
 use scanhil_protocol::plant_units::SensingPair;
 
 use super::mirror_link::{LoopError, MirrorLink};
-use super::realtime::ControllerTiming;
 use super::pairing::AngleTrack;
 use super::progress::Progress;
+use super::realtime::ControllerTiming;
 use super::sensor_link::SensorLink;
 use super::tracking::TrackingRecorder;
 use crate::scan_controller::ScanController;

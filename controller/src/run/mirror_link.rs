@@ -4,21 +4,20 @@
 
 use std::time::Duration;
 
-use scanhil_protocol::ild::IldValue;
-use scanhil_protocol::link::LinkError;
 use scanhil_protocol::can::CanFrame;
-use scanhil_protocol::message::{
-    CoilCommand, FaultKind, Message, MessageError, NodeId, NodeState,
-};
+use scanhil_protocol::ild::IldValue;
+use scanhil_protocol::link::{CanLink, LinkError, VirtualClock};
+use scanhil_protocol::message::{CoilCommand, FaultKind, Message, MessageError, NodeId, NodeState};
 use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
-use super::can_host::HostCanPort;
 
 /// Why the loop stopped early.
 #[derive(Debug, thiserror::Error)]
 pub enum LoopError {
     /// No answer within the watchdog's allowance.
-    #[error("link timeout on {link}: no angle reading for period {period} within {waited:?} ({periods} periods' allowance)")]
+    #[error(
+        "link timeout on {link}: no angle reading for period {period} within {waited:?} ({periods} periods' allowance)"
+    )]
     LinkTimeout {
         /// The link.
         link: String,
@@ -80,7 +79,8 @@ pub struct MirrorLinkCounters {
 /// The controller's end of the mirror node's link.
 #[derive(Debug)]
 pub struct MirrorLink {
-    port: HostCanPort,
+    port: CanLink,
+    clock: Option<VirtualClock>,
     period_s: f64,
     answer_allowance: Duration,
     watchdog_periods: u32,
@@ -90,17 +90,20 @@ pub struct MirrorLink {
 }
 
 impl MirrorLink {
-    /// Wraps an open port. The watchdog allows `watchdog_periods` missed answers of
-    /// `answer_allowance` wall-clock time each.
+    /// Wraps an open host-side link. The watchdog allows `watchdog_periods` missed answers
+    /// of `answer_allowance` wall-clock time each. With `clock`, the link's capture is stamped
+    /// with loop time (lockstep), which this sets before every frame.
     #[must_use]
     pub fn new(
-        port: HostCanPort,
+        port: CanLink,
+        clock: Option<VirtualClock>,
         period_s: f64,
         answer_allowance: Duration,
         watchdog_periods: u32,
     ) -> MirrorLink {
         MirrorLink {
             port,
+            clock,
             period_s,
             answer_allowance,
             watchdog_periods: watchdog_periods.max(1),
@@ -121,9 +124,8 @@ impl MirrorLink {
     ) -> Result<SensingPair, LoopError> {
         let t_send = k as f64 * self.period_s;
         let command = Message::CoilCommand(CoilCommand::from_amps(k as u16, command_a));
-        self.port.send(&encode(&command)?, t_send).await?;
-        let step = Message::Step { step: k as u32 };
-        self.port.send(&encode(&step)?, t_send).await?;
+        self.send(&command, t_send).await?;
+        self.send(&Message::Step { step: k as u32 }, t_send).await?;
         self.await_reading(k, (k + 1) as f64 * self.period_s).await
     }
 
@@ -137,7 +139,7 @@ impl MirrorLink {
         let allowance = self.total_allowance();
         let deadline = tokio::time::Instant::now() + allowance;
         loop {
-            let frame = tokio::time::timeout_at(deadline, self.port.recv(t_s))
+            let frame = tokio::time::timeout_at(deadline, self.recv(t_s))
                 .await
                 .map_err(|_| self.timeout(expected, allowance))??;
             if let Some((seq, angles)) = self.classify(&frame, t_s)? {
@@ -157,14 +159,12 @@ impl MirrorLink {
     /// Link errors.
     pub async fn send_command(&mut self, k: u64, command_a: ActuatorPair) -> Result<(), LoopError> {
         let command = Message::CoilCommand(CoilCommand::from_amps(k as u16, command_a));
-        self.port
-            .send(&encode(&command)?, (k + 1) as f64 * self.period_s)
-            .await?;
+        self.send(&command, (k + 1) as f64 * self.period_s).await?;
         Ok(())
     }
 
-    /// Sends malformed input for period `k`: a Step and a CoilCommand with short payloads
-    /// and, on SLCAN, a garbage line. Returns what was sent.
+    /// Sends malformed input for period `k`: a Step and a CoilCommand with short payloads.
+    /// Returns what was sent.
     ///
     /// # Errors
     /// Link errors.
@@ -177,11 +177,9 @@ impl MirrorLink {
             let frame = CanId::standard(raw_id)
                 .and_then(|can_id| CanFrame::new(can_id, &[0xFF, 0xFF]).ok())
                 .expect("a 2-byte classical frame with an 11-bit id");
-            self.port.send(&frame, t_s).await?;
+            self.at(t_s);
+            self.port.send(&frame).await?;
             sent.push(format!("{name} with 2 data bytes"));
-        }
-        if self.port.send_garbage_line().await? {
-            sent.push("a garbage SLCAN line".to_owned());
         }
         Ok(sent.join(", "))
     }
@@ -196,7 +194,7 @@ impl MirrorLink {
         let started = tokio::time::Instant::now();
         let deadline = started + allowance;
         loop {
-            let frame = match tokio::time::timeout_at(deadline, self.port.recv(0.0)).await {
+            let frame = match tokio::time::timeout_at(deadline, self.recv(0.0)).await {
                 Err(_) => return Err(self.timeout(0, allowance)),
                 Ok(Err(LinkError::HangUp { .. })) => {
                     return Err(LoopError::Link(LinkError::Protocol {
@@ -243,9 +241,25 @@ impl MirrorLink {
         self.port.name()
     }
 
-    /// The underlying port (to start its recording).
-    pub fn port_mut(&mut self) -> &mut HostCanPort {
-        &mut self.port
+    /// Sets the loop time the next recorded frames are stamped with (lockstep).
+    fn at(&self, t_s: f64) {
+        if let Some(clock) = &self.clock {
+            clock.set(Duration::from_secs_f64(t_s));
+        }
+    }
+
+    async fn send(&mut self, message: &Message, t_s: f64) -> Result<(), LoopError> {
+        let frame = message
+            .encode()
+            .map_err(|error| LoopError::Encode(error.to_string()))?;
+        self.at(t_s);
+        self.port.send(&frame).await?;
+        Ok(())
+    }
+
+    async fn recv(&mut self, t_s: f64) -> Result<CanFrame, LinkError> {
+        self.at(t_s);
+        self.port.recv().await
     }
 
     fn total_allowance(&self) -> Duration {
@@ -265,7 +279,7 @@ impl MirrorLink {
         let allowance = self.total_allowance();
         let deadline = tokio::time::Instant::now() + allowance;
         loop {
-            let frame = tokio::time::timeout_at(deadline, self.port.recv(t_s))
+            let frame = tokio::time::timeout_at(deadline, self.recv(t_s))
                 .await
                 .map_err(|_| self.timeout(k, allowance))??;
             if let Some((seq, angles)) = self.classify(&frame, t_s)? {
@@ -332,11 +346,4 @@ impl MirrorLink {
         }
         Ok(None)
     }
-}
-
-/// Encodes a message the controller sends (its fields are always in range).
-fn encode(message: &Message) -> Result<CanFrame, LoopError> {
-    message
-        .encode()
-        .map_err(|error| LoopError::Encode(error.to_string()))
 }

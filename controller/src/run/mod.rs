@@ -6,7 +6,6 @@
 //! # Layout
 //! - [`scenario`]: the scenario file format and its loading.
 //! - [`emulator_process`]: locating and starting `scanhil-emulator serve`.
-//! - [`can_host`]: the host end of a CAN link (SLCAN or SocketCAN) with its candump recording.
 //! - [`mirror_link`]: the mirror node seen from the controller: exchanges, status, faults,
 //!   watchdog.
 //! - [`sensor_link`]: the ILD stream seen from the controller, with its raw recording.
@@ -21,7 +20,6 @@
 //! - [`plant_link`]: [`crate::link::PlantLink`] over a real mirror link, for `scanhil identify`.
 
 pub mod bus_load;
-pub mod can_host;
 pub mod conformance;
 pub mod emulator_process;
 pub mod lockstep;
@@ -43,10 +41,11 @@ use std::time::Duration;
 
 use anyhow::{Context, bail};
 use scanhil_emulator::scene::Scene;
-use scanhil_protocol::link::{LinkUri, PtyPair};
+use scanhil_emulator::serve::plant_sensor::measuring_rate_hz;
+use scanhil_protocol::link::role::Role;
+use scanhil_protocol::link::{CanCapture, CanLink, CaptureClock, PtyPair, VirtualClock};
 
 use crate::settings::ControllerSettings;
-use can_host::HostCanPort;
 use emulator_process::{EmulatorProcess, locate_emulator};
 use mirror_link::MirrorLink;
 use pairing::SensorClock;
@@ -117,7 +116,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         );
     }
     let periods = (scenario.duration_s / period_s).round() as u64;
-    bus_load::check(&scenario, &scene, period_s)?;
+    bus_load::check(&scenario, measuring_rate_hz(&scene), period_s)?;
     std::fs::create_dir_all(&options.out_dir)
         .with_context(|| format!("creating {}", options.out_dir.display()))?;
 
@@ -139,17 +138,9 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             timing: scenario.timing,
             period_s,
             duration_s: scenario.duration_s,
+            record_dir: Some(out_dir.clone()),
         };
         let mut links = open_links(&plan).await?;
-        links
-            .mirror
-            .port_mut()
-            .record_to(&out_dir.join(output::FSM_LOG), &links.fsm_iface)
-            .context("creating the mirror link's recording")?;
-        links
-            .sensor
-            .record_to(&out_dir.join(output::SENSOR_CAPTURE))
-            .context("creating the sensor's recording")?;
         let progress = progress::Progress::new(periods, &scenario.name);
         let record = match scenario.timing.mode {
             TimingMode::Lockstep => {
@@ -187,7 +178,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             .await
             .context("draining the sensor link")?;
         let emulator_summary = match links.emulator {
-            Some(process) => Some(finish_emulator(process, links.ready_lines).await?),
+            Some(process) => Some(finish_emulator(process, links.emulator_lines).await?),
             None => None,
         };
         anyhow::Ok(output::RunData {
@@ -195,7 +186,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             can_distances,
             mirror_counters,
             node_events,
-            sensor: links.sensor.into_samples(),
+            sensor: links.sensor.snapshot(),
             emulator_summary,
         })
     })?;
@@ -224,6 +215,8 @@ pub struct LinkPlan {
     pub period_s: f64,
     /// Real time: how long the emulator runs, s.
     pub duration_s: f64,
+    /// Record the links into this folder (`fsm.log`, `sensor.ild`).
+    pub record_dir: Option<PathBuf>,
 }
 
 /// The open links and the emulator process behind them.
@@ -233,18 +226,20 @@ pub struct OpenLinks {
     pub mirror: MirrorLink,
     /// The sensor.
     pub sensor: SensorLink,
-    /// The interface name written into the mirror's candump log.
-    pub fsm_iface: String,
     /// The emulator, when started here.
     pub emulator: Option<EmulatorProcess>,
-    /// The emulator's stdout lines.
-    pub ready_lines: Option<mpsc::Receiver<String>>,
+    /// The emulator's stdout lines after its ready line.
+    pub emulator_lines: Option<mpsc::Receiver<String>>,
 }
 
-/// Opens the links of `plan` and starts the emulator when the plan says so.
+/// How long an emulator started here may take to open its links.
+const EMULATOR_STARTUP: Duration = Duration::from_secs(60);
+
+/// Opens the links of `plan`, starting the emulator first when the plan says so.
 ///
 /// # Errors
-/// Links that do not open, an emulator that cannot be found or started.
+/// Links that do not open, an emulator that cannot be found, started, or that exits before
+/// it is ready.
 pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
     let timing = plan.timing;
     let mut emulator_args: Vec<String> = vec![
@@ -267,62 +262,84 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         emulator_args.push("--duration-s".into());
         emulator_args.push(plan.duration_s.to_string());
     }
-    let allowance = match timing.mode {
-        TimingMode::Lockstep => Duration::from_secs_f64(timing.lockstep_answer_allowance_s),
-        TimingMode::Realtime => Duration::from_secs_f64(plan.period_s),
-    };
     let mut spawn = plan.spawn_emulator;
-    let (mirror_port, fsm_iface) = match &plan.fsm {
+    let fsm_pty = match &plan.fsm {
         NodeLink::Pty => {
             spawn = true;
             let pair = PtyPair::open()?;
-            let slave = format!("slcan:{}", pair.slave_path().display());
-            emulator_args.extend(["--fsm".into(), slave.clone()]);
-            (HostCanPort::on_pty(pair, &slave).await?, "slcan0".to_owned())
+            emulator_args.extend(["--fsm".into(), format!("slcan:{}", pair.slave_path().display())]);
+            Some(pair)
         }
         NodeLink::Uri(uri) => {
-            let parsed: LinkUri = uri.parse()?;
             emulator_args.extend(["--fsm".into(), uri.clone()]);
-            let iface = match &parsed {
-                LinkUri::SocketCan { iface, .. } => iface.clone(),
-                _ => "slcan0".to_owned(),
-            };
-            (HostCanPort::open(&parsed).await?, iface)
+            None
         }
     };
-    let sensor = match &plan.sensor {
-        None => SensorLink::Elsewhere,
+    let mut sensor_pty = None;
+    match &plan.sensor {
+        None => {}
         Some(NodeLink::Pty) => {
             spawn = true;
             let pair = PtyPair::open()?;
-            let slave = format!("ild:{}", pair.slave_path().display());
-            emulator_args.extend(["--sensor".into(), slave.clone()]);
-            SensorLink::on_pty(pair, &slave)?
+            emulator_args.extend(["--sensor".into(), format!("ild:{}", pair.slave_path().display())]);
+            sensor_pty = Some(pair);
         }
-        Some(NodeLink::Uri(uri)) if uri == "fsm" => {
-            emulator_args.extend(["--sensor".into(), "fsm".into()]);
-            SensorLink::Elsewhere
-        }
-        Some(NodeLink::Uri(uri)) => {
-            emulator_args.extend(["--sensor".into(), uri.clone()]);
-            SensorLink::open(&uri.parse()?)?
-        }
-    };
-    let (emulator, ready_lines) = if spawn {
+        Some(NodeLink::Uri(uri)) => emulator_args.extend(["--sensor".into(), uri.clone()]),
+    }
+    let (emulator, emulator_lines) = if spawn {
         let binary = locate_emulator(plan.emulator.as_deref())?;
         let mut process = EmulatorProcess::start(&binary, &emulator_args)?;
         let lines = process.stdout_lines();
+        let ready = tokio::task::spawn_blocking(move || {
+            let first = lines.recv_timeout(EMULATOR_STARTUP);
+            (first, lines)
+        })
+        .await
+        .context("waiting for the emulator")?;
+        let (first, lines) = ready;
+        match first {
+            Ok(line) if line.contains("\"ready\"") => {}
+            _ => bail!(
+                "{} did not become ready (see its error above)",
+                process.path().display()
+            ),
+        }
         (Some(process), Some(lines))
     } else {
         (None, None)
     };
-    let mirror = MirrorLink::new(mirror_port, plan.period_s, allowance, timing.watchdog_periods);
+    let mut fsm = match (fsm_pty, &plan.fsm) {
+        (Some(pair), _) => CanLink::open_pty(pair, None, Role::Host).await?,
+        (None, NodeLink::Uri(uri)) => CanLink::open(&uri.parse()?, Role::Host).await?,
+        (None, NodeLink::Pty) => unreachable!("a pty link has its pair"),
+    };
+    let mut sensor = match (sensor_pty, &plan.sensor) {
+        (Some(pair), _) => SensorLink::on_pty(pair)?,
+        (None, Some(NodeLink::Uri(uri))) if uri != "fsm" => SensorLink::open(&uri.parse()?)?,
+        _ => SensorLink::Elsewhere,
+    };
+    let clock = (timing.mode == TimingMode::Lockstep).then(VirtualClock::default);
+    if let Some(dir) = &plan.record_dir {
+        let log = std::fs::File::create(dir.join(output::FSM_LOG))
+            .with_context(|| format!("creating {}", dir.join(output::FSM_LOG).display()))?;
+        let capture_clock = clock
+            .clone()
+            .map_or(CaptureClock::Wall, CaptureClock::Virtual);
+        fsm.set_capture(CanCapture::new(log, output::FSM_INTERFACE, capture_clock));
+        sensor
+            .record_to(&dir.join(output::SENSOR_CAPTURE))
+            .with_context(|| format!("creating {}", dir.join(output::SENSOR_CAPTURE).display()))?;
+    }
+    let allowance = match timing.mode {
+        TimingMode::Lockstep => Duration::from_secs_f64(timing.lockstep_answer_allowance_s),
+        TimingMode::Realtime => Duration::from_secs_f64(plan.period_s),
+    };
+    let mirror = MirrorLink::new(fsm, clock, plan.period_s, allowance, timing.watchdog_periods);
     Ok(OpenLinks {
         mirror,
         sensor,
-        fsm_iface,
         emulator,
-        ready_lines,
+        emulator_lines,
     })
 }
 
@@ -351,7 +368,7 @@ pub async fn finish_emulator(
 /// The sensor's clock: declared by the emulator's summary when it served the sensor, else
 /// the scene's measuring rate with counter 0 at loop time 0.
 fn sensor_clock(scene: &Scene, emulator: Option<&serde_json::Value>) -> SensorClock {
-    let rate = scene.sensor.clone().unwrap_or_default().measuring_rate_hz;
+    let rate = measuring_rate_hz(scene);
     let declared = emulator.and_then(|e| e["summary"]["sensor"]["counter_zero_s"].as_f64());
     SensorClock {
         measuring_rate_hz: rate,

@@ -31,6 +31,8 @@ use crate::imaging::reconstruct::{ScanSample, reconstruct};
 
 /// The mirror link's candump log.
 pub const FSM_LOG: &str = "fsm.log";
+/// The interface name in the candump log, the same on every transport so recordings compare.
+pub const FSM_INTERFACE: &str = "fsm";
 /// The ILD stream's raw capture.
 pub const SENSOR_CAPTURE: &str = "sensor.ild";
 /// The run report.
@@ -68,10 +70,14 @@ pub fn write(
     let range = MeasuringRange::ILD2300_100;
     let (mut counted, sensor_counters) = run.sensor.clone();
     let mut can_counter = CounterUnwrapper::new(ILD_COUNTER_MODULUS);
-    counted.extend(run.can_distances.iter().map(|&(counter, value)| CountedSample {
-        counter: can_counter.unwrap(u64::from(counter)),
-        value,
-    }));
+    counted.extend(
+        run.can_distances
+            .iter()
+            .map(|&(counter, value)| CountedSample {
+                counter: can_counter.unwrap(u64::from(counter)),
+                value,
+            }),
+    );
     let mut unpaired = 0u64;
     let samples: Vec<ScanSample> = counted
         .iter()
@@ -107,19 +113,25 @@ pub fn write(
     let xyz: Vec<[f64; 3]> = points.iter().map(|p| [p.x_mm, p.y_mm, p.z_mm]).collect();
     let spec = GridSpec::covering(xyz.iter().map(|p| (p[0], p[1])), scenario.imaging.pitch_mm).ok();
     let height_map = spec.map(|spec| {
-        grid_points(xyz.iter().map(|p| (p[0], p[1], p[2])), spec, GridMethod::default())
+        grid_points(
+            xyz.iter().map(|p| (p[0], p[1], p[2])),
+            spec,
+            GridMethod::default(),
+        )
     });
     if let Some(map) = &height_map {
-        map.write_png(&out_dir.join("height_map.png"))
+        // Cells drawn 4 pixels wide: a 0.1 mm grid over a 12 mm field is a readable 480 px.
+        map.write_png(&out_dir.join("height_map.png"), 4)
             .context("writing height_map.png")?;
         let csv = std::fs::File::create(out_dir.join("height_map.csv"))
             .context("writing height_map.csv")?;
         map.write_csv(std::io::BufWriter::new(csv))
             .context("writing height_map.csv")?;
     }
-    let feature = scenario.imaging.feature.map(|params| {
-        feature_height(&xyz, &params).map_err(|error| error.to_string())
-    });
+    let feature = scenario
+        .imaging
+        .feature
+        .map(|params| feature_height(&xyz, &params).map_err(|error| error.to_string()));
     let truth = super::truth::TrueSurface::from_scene(scene);
     let progressive = progressive_error(
         points,
@@ -317,7 +329,10 @@ fn write_plots(
             y_axis: Axis::Linear,
             series: vec![Series {
                 label: "coverage".into(),
-                points: progressive.iter().map(|p| (p.scan_time_s, p.coverage)).collect(),
+                points: progressive
+                    .iter()
+                    .map(|p| (p.scan_time_s, p.coverage))
+                    .collect(),
                 markers: true,
             }],
         }];

@@ -64,6 +64,7 @@ impl LinkedPlant {
             },
             period_s,
             duration_s: 0.0,
+            record_dir: None,
         };
         let links = runtime.block_on(open_links(&plan))?;
         Ok(LinkedPlant {

@@ -12,10 +12,8 @@ use scanhil_protocol::plant_units::SensingPair;
 
 use super::lockstep::LoopRecord;
 use super::mirror_link::MirrorLink;
-use super::pairing::AngleTrack;
 use super::progress::Progress;
 use super::sensor_link::SensorLink;
-use super::tracking::TrackingRecorder;
 use crate::scan_controller::ScanController;
 use crate::trajectory::Trajectory;
 

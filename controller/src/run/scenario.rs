@@ -242,7 +242,10 @@ impl Scenario {
             ));
         }
         if file.timing.watchdog_periods == 0 {
-            return Err(invalid("timing.watchdog_periods", "must be at least 1".into()));
+            return Err(invalid(
+                "timing.watchdog_periods",
+                "must be at least 1".into(),
+            ));
         }
         let allowance = file.timing.lockstep_answer_allowance_s;
         if !(allowance.is_finite() && allowance > 0.0) {

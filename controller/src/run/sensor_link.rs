@@ -1,24 +1,26 @@
-//! The controller's end of the sensor: the ILD 2300's RS422 stream on a serial line or pty,
-//! recorded raw byte for byte, decoded into (counter, value) samples. Each output cycle is a
-//! distance value, then (when the sensor sends it, `OUTADD_RS422 COUNTER`) its 18-bit
-//! measured-value counter; a sensor without the counter gets the running count of cycles.
-//! A sensor on the mirror's CAN link sends Distance frames instead; [`super::mirror_link`]
-//! collects those.
+//! The controller's end of the sensor: the ILD 2300's RS422 stream (the protocol's
+//! [`IldLink`], host end), recorded raw byte for byte, decoded into (counter, value) samples.
+//! Each output cycle is a distance value, then (when the sensor sends it,
+//! `OUTADD_RS422 COUNTER`) its 18-bit measured-value counter; a sensor without the counter
+//! gets the running count of cycles. A sensor on the mirror's CAN link sends Distance frames
+//! instead; [`super::mirror_link`] collects those.
 
 use std::fs::File;
-use std::io::Write;
 use std::path::Path;
 use std::time::Duration;
 
 use scanhil_protocol::ild::IldValue;
-use scanhil_protocol::ild::stream::IldDecoder;
-use scanhil_protocol::link::{LinkError, LinkUri, PtyPair, SerialLine};
+use scanhil_protocol::link::ild::IldLink;
+use scanhil_protocol::link::role::Role;
+use scanhil_protocol::link::{ByteCapture, LinkError, LinkUri, PtyPair};
 
 use super::mirror_link::LoopError;
 use super::pairing::CounterUnwrapper;
 
 /// The ILD counter's modulus (18 bits).
 pub const ILD_COUNTER_MODULUS: u64 = 1 << 18;
+/// Values per output cycle: the distance and the counter.
+const VALUES_PER_CYCLE: usize = 2;
 
 /// One decoded sensor sample: unwrapped counter and value.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -32,14 +34,14 @@ pub struct CountedSample {
 /// What the sensor link saw.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct SensorCounters {
-    /// Bytes received.
-    pub bytes: u64,
     /// Samples decoded.
     pub samples: u64,
     /// Counter values missing between received samples (0 on a healthy link).
     pub counter_gaps: u64,
     /// Bytes skipped to resynchronise.
     pub resync_bytes: u64,
+    /// Cycles that arrived without their counter.
+    pub incomplete_cycles: u64,
 }
 
 /// The sensor's link.
@@ -48,19 +50,15 @@ pub enum SensorLink {
     /// No sensor, or its distances arrive on the mirror's CAN link.
     Elsewhere,
     /// The ILD stream.
-    Ild(IldStream),
+    Ild(Box<IldStream>),
 }
 
-/// The host end of an ILD stream.
+/// The host end of an ILD stream and what it delivered.
 #[derive(Debug)]
 pub struct IldStream {
-    line: SerialLine,
-    capture: Option<File>,
-    decoder: IldDecoder,
-    cycle: Vec<u32>,
+    link: IldLink,
     unwrapper: CounterUnwrapper,
     samples: Vec<CountedSample>,
-    counters: SensorCounters,
 }
 
 impl SensorLink {
@@ -69,29 +67,24 @@ impl SensorLink {
     /// # Errors
     /// [`LinkError`] naming the link; a CAN URI is refused.
     pub fn open(uri: &LinkUri) -> Result<SensorLink, LinkError> {
-        match uri {
-            LinkUri::Ild { path, baud } => Ok(SensorLink::Ild(IldStream::new(SerialLine::open(
-                path,
-                *baud,
-                &uri.to_string(),
-            )?))),
-            other => Err(LinkError::Protocol {
-                link: other.to_string(),
-                detail: "the sensor link must be `ild:PATH[@BAUD]` (Distance frames on CAN \
-                         arrive on the mirror's link)"
-                    .into(),
-            }),
-        }
+        Ok(Self::on(IldLink::open(uri, Role::Host)?))
     }
 
     /// The ILD stream on the master end of a pty pair whose slave the emulator opens.
     ///
     /// # Errors
     /// [`LinkError`] if the line cannot be set up.
-    pub fn on_pty(pair: PtyPair, name: &str) -> Result<SensorLink, LinkError> {
-        Ok(SensorLink::Ild(IldStream::new(SerialLine::from_pty(
-            pair, name,
-        )?)))
+    pub fn on_pty(pair: PtyPair) -> Result<SensorLink, LinkError> {
+        Ok(Self::on(IldLink::open_pty(pair, Role::Host)?))
+    }
+
+    fn on(mut link: IldLink) -> SensorLink {
+        link.set_values_per_cycle(VALUES_PER_CYCLE);
+        SensorLink::Ild(Box::new(IldStream {
+            link,
+            unwrapper: CounterUnwrapper::new(ILD_COUNTER_MODULUS),
+            samples: Vec::new(),
+        }))
     }
 
     /// Records every received byte into `path` (a raw capture `scanhil decode --format ild`
@@ -101,7 +94,7 @@ impl SensorLink {
     /// The file cannot be created.
     pub fn record_to(&mut self, path: &Path) -> std::io::Result<()> {
         if let SensorLink::Ild(stream) = self {
-            stream.capture = Some(File::create(path)?);
+            stream.link.set_capture(ByteCapture::new(File::create(path)?));
         }
         Ok(())
     }
@@ -112,8 +105,9 @@ impl SensorLink {
         match self {
             SensorLink::Elsewhere => std::future::pending().await,
             SensorLink::Ild(stream) => loop {
-                if let Err(error) = stream.read_once().await {
-                    return error.into();
+                match stream.link.recv_cycle().await {
+                    Ok(cycle) => stream.add(cycle.distance, cycle.extras.first().copied()),
+                    Err(error) => return error.into(),
                 }
             },
         }
@@ -128,10 +122,10 @@ impl SensorLink {
             return Ok(());
         };
         loop {
-            match tokio::time::timeout(quiet, stream.read_once()).await {
-                Err(_) | Ok(Err(LinkError::HangUp { .. })) => return Ok(()),
-                Ok(Err(error)) => return Err(error),
-                Ok(Ok(())) => {}
+            match stream.link.recv_cycle_timeout(quiet).await {
+                Ok(None) | Err(LinkError::HangUp { .. }) => return Ok(()),
+                Err(error) => return Err(error),
+                Ok(Some(cycle)) => stream.add(cycle.distance, cycle.extras.first().copied()),
             }
         }
     }
@@ -142,84 +136,25 @@ impl SensorLink {
         match self {
             SensorLink::Elsewhere => (Vec::new(), SensorCounters::default()),
             SensorLink::Ild(stream) => {
-                let mut counters = stream.counters;
-                counters.counter_gaps = stream.unwrapper.missing();
+                let link = stream.link.counters();
+                let counters = SensorCounters {
+                    samples: stream.samples.len() as u64,
+                    counter_gaps: stream.unwrapper.missing(),
+                    resync_bytes: link.skipped_bytes,
+                    incomplete_cycles: link.incomplete_cycles,
+                };
                 (stream.samples.clone(), counters)
-            }
-        }
-    }
-
-    /// The decoded samples and counters.
-    #[must_use]
-    pub fn into_samples(self) -> (Vec<CountedSample>, SensorCounters) {
-        match self {
-            SensorLink::Elsewhere => (Vec::new(), SensorCounters::default()),
-            SensorLink::Ild(mut stream) => {
-                stream.end_cycle();
-                stream.counters.counter_gaps = stream.unwrapper.missing();
-                (stream.samples, stream.counters)
             }
         }
     }
 }
 
 impl IldStream {
-    fn new(line: SerialLine) -> IldStream {
-        IldStream {
-            line,
-            capture: None,
-            decoder: IldDecoder::new(),
-            cycle: Vec::new(),
-            unwrapper: CounterUnwrapper::new(ILD_COUNTER_MODULUS),
-            samples: Vec::new(),
-            counters: SensorCounters::default(),
-        }
-    }
-
-    async fn read_once(&mut self) -> Result<(), LinkError> {
-        let mut buf = [0u8; 4096];
-        let n = self.line.read(&mut buf).await?;
-        let bytes = &buf[..n];
-        self.counters.bytes += n as u64;
-        if let Some(capture) = &mut self.capture {
-            capture
-                .write_all(bytes)
-                .map_err(|source| LinkError::Capture {
-                    link: self.line.name().to_owned(),
-                    source,
-                })?;
-        }
-        for event in self.decoder.push(bytes) {
-            match event {
-                Ok(word) => {
-                    if word.first_in_cycle {
-                        self.end_cycle();
-                    }
-                    self.cycle.push(word.raw);
-                }
-                Err(gap) => {
-                    self.counters.resync_bytes += gap.len;
-                    self.cycle.clear();
-                }
-            }
-        }
-        Ok(())
-    }
-
-    /// Turns the collected cycle (value, then optionally the counter) into a sample.
-    fn end_cycle(&mut self) {
-        let Some(&raw) = self.cycle.first() else {
-            return;
+    fn add(&mut self, value: IldValue, counter: Option<u32>) {
+        let counter = match counter {
+            Some(raw) => self.unwrapper.unwrap(u64::from(raw)),
+            None => self.samples.len() as u64,
         };
-        let counter = match self.cycle.get(1) {
-            Some(&counter) => self.unwrapper.unwrap(u64::from(counter)),
-            None => self.counters.samples,
-        };
-        self.samples.push(CountedSample {
-            counter,
-            value: IldValue::from_raw(raw),
-        });
-        self.counters.samples += 1;
-        self.cycle.clear();
+        self.samples.push(CountedSample { counter, value });
     }
 }

@@ -75,7 +75,10 @@ impl TrackingRecorder {
             let n = errors.len().max(1) as f64;
             let rms = (errors.iter().map(|e| error(e).powi(2)).sum::<f64>() / n).sqrt();
             let max_abs = errors.iter().map(|e| error(e).abs()).fold(0.0, f64::max);
-            let peak = references.iter().map(|r| error(r).abs()).fold(0.0, f64::max);
+            let peak = references
+                .iter()
+                .map(|r| error(r).abs())
+                .fold(0.0, f64::max);
             AxisError {
                 rms_urad: rms * 1e6,
                 max_abs_urad: max_abs * 1e6,

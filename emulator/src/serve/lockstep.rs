@@ -10,8 +10,8 @@
 
 use std::time::Duration;
 
-use scanhil_protocol::link::{LinkError, Watchdog};
 use scanhil_protocol::can::CanFrame;
+use scanhil_protocol::link::{LinkError, Watchdog};
 use scanhil_protocol::message::{
     AngleReading, Fault, FaultKind, Message, MessageError, NodeId, NodeState, Status, U24_MAX,
 };
@@ -51,6 +51,7 @@ pub async fn run(
                     .fsm
                     .send(&status_frame(NodeState::Fault, k, node.plant().period_s())?)
                     .await?;
+                linger(links).await?;
                 return Ok(LoopReport {
                     outcome: ServeOutcome::LinkTimeout,
                     timing: serde_json::Value::Null,
@@ -99,14 +100,15 @@ pub async fn run(
                     match output {
                         NodeOutput::Angles(step) => {
                             links.fsm.send(&angle_frame(&step)?).await?;
-                            links.sensor.emit(&step.sensor_samples, &mut links.fsm).await?;
+                            let samples = super::plant_sensor::samples(&step);
+                            links.sensor.emit(&samples, &mut links.fsm).await?;
                         }
                         NodeOutput::Fault(kind, detail) => {
                             links.fsm.send(&fault_frame(kind, detail, k)?).await?;
                         }
                     }
                 }
-                if k % heartbeat_every == 0 {
+                if k.is_multiple_of(heartbeat_every) {
                     let status = status_frame(node.state(), k, node.plant().period_s())?;
                     links.fsm.send(&status).await?;
                 }
@@ -152,6 +154,25 @@ pub fn status_frame(state: NodeState, k: u64, period_s: f64) -> Result<CanFrame,
         node_time_us: (node_time_us & u64::from(U24_MAX)) as u32,
     })
     .encode()
+}
+
+/// How long the node keeps the link open after its last frames, so the host can read them
+/// (closing a pty drops what the other end has not read yet).
+pub const LINGER: Duration = Duration::from_secs(2);
+
+/// Keeps the link open, ignoring what arrives, until the host hangs up or [`LINGER`] passes.
+///
+/// # Errors
+/// A link error other than the hang-up.
+pub async fn linger(links: &mut ServeLinks) -> anyhow::Result<()> {
+    let deadline = tokio::time::Instant::now() + LINGER;
+    loop {
+        match tokio::time::timeout_at(deadline, links.fsm.recv()).await {
+            Err(_) | Ok(Err(LinkError::HangUp { .. })) => return Ok(()),
+            Ok(Err(error)) => return Err(error.into()),
+            Ok(Ok(_)) => {}
+        }
+    }
 }
 
 /// Periods between two status frames (at least 1).

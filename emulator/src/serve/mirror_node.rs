@@ -85,6 +85,16 @@ impl MirrorNode {
         self.counters
     }
 
+    /// The coil currents the node applies from the next period on (zero after a fault), A.
+    #[must_use]
+    pub fn held_command_a(&self) -> ActuatorPair {
+        if self.state == NodeState::Fault {
+            ActuatorPair::default()
+        } else {
+            self.command_a
+        }
+    }
+
     /// The next period to step.
     #[must_use]
     pub fn next_period(&self) -> u64 {
@@ -106,10 +116,11 @@ impl MirrorNode {
     /// A coil current command with its 16-bit sequence counter. Non-finite currents are
     /// refused by the plant at the next step; here they are held like any other command.
     pub fn on_command(&mut self, seq: u16, currents_a: ActuatorPair) {
-        if let Some(last) = self.last_command_seq {
-            if seq != last.wrapping_add(1) {
-                self.counters.command_gaps += 1;
-            }
+        if self
+            .last_command_seq
+            .is_some_and(|last| seq != last.wrapping_add(1))
+        {
+            self.counters.command_gaps += 1;
         }
         self.last_command_seq = Some(seq);
         self.counters.commands += 1;
@@ -192,5 +203,7 @@ impl MirrorNode {
 
 /// Rounds to the nearest `i32`, saturating (a fault frame's detail field).
 fn saturate_i32(value: f64) -> i32 {
-    value.round().clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
+    value
+        .round()
+        .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
 }

@@ -3,7 +3,7 @@
 //!
 //! # Layout
 //! - [`mirror_node`]: the mirror node as a protocol state machine around the plant (no I/O).
-//! - [`can_port`]: the emulator's end of a CAN link (SLCAN device role, or SocketCAN).
+//! - [`plant_sensor`]: the sensor samples of a plant step, and the sensor's rate.
 //! - [`sensor_port`]: where the sensor's samples go (the ILD stream, or CAN Distance frames).
 //! - [`lockstep`]: the controller's Step frame advances the plant one period.
 //! - [`realtime`]: this emulator is the clock master on the wall clock.
@@ -11,9 +11,9 @@
 //! The process speaks on stdout in JSON lines: `{"event":"ready",...}` once the links are
 //! open (with the paths of any pty it created), and `{"event":"summary",...}` at the end.
 
-pub mod can_port;
 pub mod lockstep;
 pub mod mirror_node;
+pub mod plant_sensor;
 pub mod realtime;
 pub mod sensor_port;
 
@@ -21,11 +21,11 @@ use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{Context, bail};
-use scanhil_protocol::link::{LinkUri, PtyPair};
+use scanhil_protocol::link::role::Role;
+use scanhil_protocol::link::{CanLink, LinkUri, PtyPair};
 
 use crate::plant::Plant;
 use crate::scene::Scene;
-use can_port::DevicePort;
 use mirror_node::MirrorNode;
 use sensor_port::SensorPort;
 
@@ -75,8 +75,8 @@ pub enum ServeOutcome {
 /// The open links of a serve run.
 #[derive(Debug)]
 pub struct ServeLinks {
-    /// The mirror node's port.
-    pub fsm: DevicePort,
+    /// The mirror node's CAN link (device end).
+    pub fsm: CanLink,
     /// Where the sensor's samples go.
     pub sensor: SensorPort,
 }
@@ -107,8 +107,8 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
         let Some(fsm_uri) = config.fsm.as_deref() else {
             bail!("--fsm is required: the mirror node clocks the sensor in both timing modes");
         };
-        let (fsm, fsm_name) = open_fsm(fsm_uri)?;
-        ready["fsm"] = fsm_name.into();
+        let fsm = open_fsm(fsm_uri).await?;
+        ready["fsm"] = fsm.name().into();
         let (sensor, sensor_name) = SensorPort::open(config.sensor.as_deref(), &scene)?;
         ready["sensor"] = sensor_name.into();
         println_flushed(&ready)?;
@@ -122,7 +122,9 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
             "event": "summary",
             "outcome": report.outcome,
             "node": node.counters(),
-            "port": links.fsm.counters(),
+            "final_state": node.state(),
+            "held_coil_currents_a": node.held_command_a(),
+            "link": link_summary(&links.fsm),
             "sensor": links.sensor.summary(),
             "timing": report.timing,
             "error": report.error,
@@ -143,14 +145,22 @@ pub struct LoopReport {
     pub error: Option<String>,
 }
 
-fn open_fsm(uri: &str) -> anyhow::Result<(DevicePort, String)> {
+async fn open_fsm(uri: &str) -> anyhow::Result<CanLink> {
     if uri == "slcan:pty" {
-        let pair = PtyPair::open()?;
-        let name = format!("slcan:{}", pair.slave_path().display());
-        return Ok((DevicePort::slcan_on_pty(pair, &name)?, name));
+        return Ok(CanLink::open_pty(PtyPair::open()?, None, Role::Device).await?);
     }
     let parsed: LinkUri = uri.parse()?;
-    Ok((DevicePort::open(&parsed)?, parsed.to_string()))
+    Ok(CanLink::open(&parsed, Role::Device).await?)
+}
+
+fn link_summary(link: &CanLink) -> serde_json::Value {
+    let stats = link.stats();
+    serde_json::json!({
+        "frames_sent": stats.frames_sent,
+        "frames_received": stats.frames_received,
+        "slcan_malformed_lines": stats.slcan.malformed_lines,
+        "slcan_refused_frames": stats.slcan.refused_frames,
+    })
 }
 
 fn println_flushed(value: &serde_json::Value) -> anyhow::Result<()> {

@@ -15,7 +15,7 @@ use scanhil_protocol::link::LinkError;
 use scanhil_protocol::loop_timing::PeriodRecorder;
 use scanhil_protocol::message::{Message, MessageError, NodeState};
 
-use super::lockstep::{angle_frame, fault_frame, periods_per_heartbeat, status_frame};
+use super::lockstep::{angle_frame, fault_frame, linger, periods_per_heartbeat, status_frame};
 use super::mirror_node::{MirrorNode, NodeOutput};
 use super::{LoopReport, ServeConfig, ServeLinks, ServeOutcome};
 
@@ -34,7 +34,8 @@ pub async fn run(
     let total_periods = config
         .duration_s
         .map(|d| (d / node.plant().period_s()).round() as u64);
-    let mut recorder = PeriodRecorder::with_capacity(total_periods.unwrap_or(0).min(1 << 24) as usize);
+    let mut recorder =
+        PeriodRecorder::with_capacity(total_periods.unwrap_or(0).min(1 << 24) as usize);
     let mut last_command_period: Option<u64> = None;
     let start = Instant::now();
     let mut last_tick: Option<Instant> = None;
@@ -78,33 +79,36 @@ pub async fn run(
             recorder.overrun();
         }
         last_tick = Some(now);
-        if let Some(last) = last_command_period {
-            if k - last > u64::from(config.watchdog_periods) {
-                let (kind, detail) = node.on_link_timeout(config.watchdog_periods);
-                links.fsm.send(&fault_frame(kind, detail, k)?).await?;
-                let status = status_frame(NodeState::Fault, k, node.plant().period_s())?;
-                links.fsm.send(&status).await?;
-                outcome = ServeOutcome::LinkTimeout;
-                error = Some(format!(
-                    "link timeout: no coil command for {} periods",
-                    config.watchdog_periods
-                ));
-                break;
-            }
+        if last_command_period.is_some_and(|last| k - last > u64::from(config.watchdog_periods)) {
+            let (kind, detail) = node.on_link_timeout(config.watchdog_periods);
+            links.fsm.send(&fault_frame(kind, detail, k)?).await?;
+            let status = status_frame(NodeState::Fault, k, node.plant().period_s())?;
+            links.fsm.send(&status).await?;
+            linger(links).await?;
+            outcome = ServeOutcome::LinkTimeout;
+            error = Some(format!(
+                "link timeout: no coil command for {} periods",
+                config.watchdog_periods
+            ));
+            break;
         }
-        links.fsm.send(&Message::Sync { step: k as u32 }.encode()?).await?;
+        links
+            .fsm
+            .send(&Message::Sync { step: k as u32 }.encode()?)
+            .await?;
         for output in node.step()? {
             match output {
                 NodeOutput::Angles(step) => {
                     links.fsm.send(&angle_frame(&step)?).await?;
-                    links.sensor.emit(&step.sensor_samples, &mut links.fsm).await?;
+                    let samples = super::plant_sensor::samples(&step);
+                    links.sensor.emit(&samples, &mut links.fsm).await?;
                 }
                 NodeOutput::Fault(kind, detail) => {
                     links.fsm.send(&fault_frame(kind, detail, k)?).await?;
                 }
             }
         }
-        if k % heartbeat_every == 0 {
+        if k.is_multiple_of(heartbeat_every) {
             let status = status_frame(node.state(), k, node.plant().period_s())?;
             links.fsm.send(&status).await?;
         }

@@ -7,13 +7,13 @@
 //! sensor's clock (measuring rate, and the loop time of counter 0) so the host can place each
 //! distance in time, as it would estimate it for a real sensor.
 
-use scanhil_protocol::link::{LinkUri, PtyPair, SerialLine};
+use scanhil_protocol::link::ild::IldLink;
+use scanhil_protocol::link::role::Role;
+use scanhil_protocol::link::{CanLink, LinkUri, PtyPair};
 
-use super::can_port::DevicePort;
-use scanhil_protocol::ild::stream::encode_cycle;
-use scanhil_protocol::message::{Distance, Message, U24_MAX};
-use crate::plant::SensorSample;
+use super::plant_sensor::{self, SensorSample};
 use crate::scene::Scene;
+use scanhil_protocol::message::{Distance, Message, U24_MAX};
 
 /// The 18-bit measured-value counter wraps here.
 pub const COUNTER_MODULUS: u32 = 1 << 18;
@@ -23,8 +23,8 @@ pub const COUNTER_MODULUS: u32 = 1 << 18;
 pub enum SensorPort {
     /// The scene has no sensor, or no sensor link was asked for: samples are dropped.
     Off,
-    /// The ILD RS422 stream.
-    Ild(SerialLine, SensorClockTrack),
+    /// The ILD RS422 stream (device end).
+    Ild(Box<IldLink>, SensorClockTrack),
     /// Distance frames on the mirror's CAN link.
     Can(SensorClockTrack),
 }
@@ -61,21 +61,21 @@ impl SensorPort {
         let clock = SensorClockTrack {
             samples: 0,
             counter_zero_s: None,
-            measuring_rate_hz: scene.sensor.clone().unwrap_or_default().measuring_rate_hz,
+            measuring_rate_hz: plant_sensor::measuring_rate_hz(scene),
         };
         if uri == "fsm" {
             return Ok((SensorPort::Can(clock), "fsm".into()));
         }
         if uri == "ild:pty" {
-            let pair = PtyPair::open()?;
-            let name = format!("ild:{}", pair.slave_path().display());
-            return Ok((SensorPort::Ild(SerialLine::from_pty(pair, &name)?, clock), name));
+            let link = IldLink::open_pty(PtyPair::open()?, Role::Device)?;
+            let name = link.name().to_owned();
+            return Ok((SensorPort::Ild(Box::new(link), clock), name));
         }
         match uri.parse::<LinkUri>()? {
-            LinkUri::Ild { path, baud } => {
-                let name = format!("ild:{}@{baud}", path.display());
-                let line = SerialLine::open(&path, baud, &name)?;
-                Ok((SensorPort::Ild(line, clock), name))
+            parsed @ LinkUri::Ild { .. } => {
+                let link = IldLink::open(&parsed, Role::Device)?;
+                let name = link.name().to_owned();
+                Ok((SensorPort::Ild(Box::new(link), clock), name))
             }
             other => anyhow::bail!(
                 "--sensor {other}: the sensor speaks the ILD stream (`ild:PATH`) or Distance \
@@ -91,24 +91,21 @@ impl SensorPort {
     pub async fn emit(
         &mut self,
         samples: &[SensorSample],
-        fsm: &mut DevicePort,
+        fsm: &mut CanLink,
     ) -> anyhow::Result<()> {
         match self {
             SensorPort::Off => {}
-            SensorPort::Ild(line, clock) => {
-                let mut bytes = Vec::with_capacity(6 * samples.len());
+            SensorPort::Ild(link, clock) => {
                 for sample in samples {
                     let counter = clock.next(sample.t_s);
-                    bytes.extend(encode_cycle(&[sample.value.raw(), counter]));
-                }
-                if !bytes.is_empty() {
-                    line.write_all(&bytes).await?;
+                    link.send_cycle(&[sample.value.raw(), counter]).await?;
                 }
             }
             SensorPort::Can(clock) => {
                 for sample in samples {
                     let counter = clock.next(sample.t_s);
-                    let sensor_time_us = ((sample.t_s * 1e6).round() as u64 & u64::from(U24_MAX)) as u32;
+                    let sensor_time_us =
+                        ((sample.t_s * 1e6).round() as u64 & u64::from(U24_MAX)) as u32;
                     let distance = Distance {
                         value: sample.value,
                         counter,
@@ -142,4 +139,3 @@ impl SensorClockTrack {
         counter
     }
 }
-

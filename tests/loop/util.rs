@@ -1,0 +1,342 @@
+//! Helpers for the loop tests: the two programs' binaries (built once, same profile as the
+//! tests), fixtures, and reading back what a run wrote.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::sync::OnceLock;
+
+use scanhil_protocol::ild::IldValue;
+use scanhil_protocol::ild::stream::IldDecoder;
+use scanhil_protocol::message::Message;
+
+/// The workspace root.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A fixture path under `fixtures/`, as a string for command lines.
+pub fn fixture(relative: &str) -> String {
+    root().join("fixtures").join(relative).display().to_string()
+}
+
+/// The target profile directory the test binary runs from (`target/debug`).
+fn profile_dir() -> PathBuf {
+    let exe = std::env::current_exe().expect("the test binary's path");
+    // target/<profile>/deps/<test binary>
+    exe.parent()
+        .and_then(Path::parent)
+        .expect("the test binary sits in target/<profile>/deps")
+        .to_owned()
+}
+
+/// Builds `scanhil` and `scanhil-emulator` once (a no-op when `cargo test --workspace` has
+/// already built them) and returns the profile directory they are in.
+fn binaries() -> &'static Path {
+    static BUILT: OnceLock<PathBuf> = OnceLock::new();
+    BUILT.get_or_init(|| {
+        let dir = profile_dir();
+        let mut build = Command::new(env!("CARGO"));
+        build.current_dir(root()).args([
+            "build",
+            "--bins",
+            "-p",
+            "scanhil-controller",
+            "-p",
+            "scanhil-emulator",
+        ]);
+        if dir.file_name().is_some_and(|name| name == "release") {
+            build.arg("--release");
+        }
+        let status = build
+            .status()
+            .expect("running cargo build for the two programs");
+        assert!(
+            status.success(),
+            "cargo build of scanhil and scanhil-emulator failed"
+        );
+        dir
+    })
+}
+
+/// The `scanhil` binary.
+pub fn scanhil() -> PathBuf {
+    binaries().join("scanhil")
+}
+
+/// The `scanhil-emulator` binary.
+pub fn emulator() -> PathBuf {
+    binaries().join("scanhil-emulator")
+}
+
+/// Runs `scanhil` with `args` and returns its output.
+pub fn run_scanhil(args: &[&str]) -> Output {
+    Command::new(scanhil())
+        .args(args)
+        .env("SCANHIL_EMULATOR", emulator())
+        .output()
+        .expect("starting scanhil")
+}
+
+/// Panics with both streams when `output` is not a success.
+pub fn assert_success(output: &Output, what: &str) {
+    assert!(
+        output.status.success(),
+        "{what} failed ({:?}):\nstdout:\n{}\nstderr:\n{}",
+        output.status,
+        String::from_utf8_lossy(&output.stdout),
+        String::from_utf8_lossy(&output.stderr)
+    );
+}
+
+/// Reads and parses `report.json` in `dir`.
+pub fn report(dir: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(dir.join("report.json")).expect("report.json written");
+    serde_json::from_str(&text).expect("report.json is JSON")
+}
+
+/// A number at a JSON pointer, or a panic naming the pointer.
+pub fn number(value: &serde_json::Value, pointer: &str) -> f64 {
+    value
+        .pointer(pointer)
+        .and_then(serde_json::Value::as_f64)
+        .unwrap_or_else(|| panic!("{pointer} is not a number in {value:#}"))
+}
+
+/// What a recording held.
+#[derive(Debug, Default)]
+pub struct DecodedRecording {
+    /// Lines (frames) in the candump log.
+    pub frames: usize,
+    /// AngleReading sequence counters, in order.
+    pub angle_seqs: Vec<u16>,
+    /// CoilCommand sequence counters, in order.
+    pub command_seqs: Vec<u16>,
+    /// Fault frames.
+    pub faults: Vec<Message>,
+}
+
+/// Decodes every line of a candump `-L` log with the protocol's decoder; panics naming the
+/// line when one does not decode.
+pub fn decode_candump(path: &Path) -> DecodedRecording {
+    let text = std::fs::read_to_string(path).expect("the candump log exists");
+    let mut decoded = DecodedRecording::default();
+    for (i, line) in text.lines().enumerate() {
+        let at = || format!("{}:{}: {line:?}", path.display(), i + 1);
+        let mut fields = line.split(' ');
+        let stamp = fields.next().unwrap_or_else(|| panic!("{}", at()));
+        assert!(
+            stamp.starts_with('(')
+                && stamp.ends_with(')')
+                && stamp[1..stamp.len() - 1].parse::<f64>().is_ok(),
+            "bad timestamp at {}",
+            at()
+        );
+        let _iface = fields.next().unwrap_or_else(|| panic!("{}", at()));
+        let compact = fields.next().unwrap_or_else(|| panic!("{}", at()));
+        let (id, data) = compact
+            .split_once('#')
+            .unwrap_or_else(|| panic!("{}", at()));
+        let id = u16::from_str_radix(id, 16).unwrap_or_else(|_| panic!("{}", at()));
+        let data = scanhil_protocol::can::parse_hex(data.as_bytes())
+            .unwrap_or_else(|| panic!("bad data at {}", at()));
+        let id = scanhil_protocol::can::CanId::standard(id).unwrap_or_else(|| panic!("{}", at()));
+        let frame =
+            scanhil_protocol::can::CanFrame::new(id, &data).unwrap_or_else(|_| panic!("{}", at()));
+        let message = Message::decode(&frame).unwrap_or_else(|e| panic!("{e} at {}", at()));
+        decoded.frames += 1;
+        match message {
+            Message::AngleReading(reading) => decoded.angle_seqs.push(reading.seq),
+            Message::CoilCommand(command) => decoded.command_seqs.push(command.seq),
+            Message::Fault(_) => decoded.faults.push(message),
+            _ => {}
+        }
+    }
+    decoded
+}
+
+/// Asserts that 16-bit sequence counters count up by one without a gap.
+pub fn assert_gapless(seqs: &[u16], what: &str) {
+    assert!(!seqs.is_empty(), "no {what} recorded");
+    for pair in seqs.windows(2) {
+        assert_eq!(
+            pair[1],
+            pair[0].wrapping_add(1),
+            "{what} sequence jumps from {} to {}",
+            pair[0],
+            pair[1]
+        );
+    }
+}
+
+/// Decodes a raw ILD capture with the protocol's stream decoder; every cycle must be a
+/// distance value and its counter, with no byte skipped. Returns (counter, value) per cycle.
+pub fn decode_ild(path: &Path) -> Vec<(u32, IldValue)> {
+    let bytes = std::fs::read(path).expect("the ILD capture exists");
+    let mut decoder = IldDecoder::new();
+    let mut cycles: Vec<Vec<u32>> = Vec::new();
+    for event in decoder.push(&bytes) {
+        let word = event.unwrap_or_else(|gap| panic!("{}: {gap}", path.display()));
+        if word.first_in_cycle {
+            cycles.push(Vec::new());
+        }
+        cycles
+            .last_mut()
+            .unwrap_or_else(|| panic!("{}: stream starts mid-cycle", path.display()))
+            .push(word.raw);
+    }
+    assert!(
+        decoder.finish().is_none(),
+        "{}: ends mid-value",
+        path.display()
+    );
+    cycles
+        .into_iter()
+        .map(|cycle| {
+            assert_eq!(
+                cycle.len(),
+                2,
+                "{}: a cycle is value + counter",
+                path.display()
+            );
+            (cycle[1], IldValue::from_raw(cycle[0]))
+        })
+        .collect()
+}
+
+/// An `scanhil-emulator serve` process started by a test, with its ready line.
+pub struct ServedEmulator {
+    /// The process.
+    pub child: std::process::Child,
+    /// The ready line.
+    pub ready: serde_json::Value,
+    lines: std::sync::mpsc::Receiver<String>,
+}
+
+impl ServedEmulator {
+    /// Starts `scanhil-emulator serve` with `args` and waits for its ready line.
+    pub fn start(args: &[&str]) -> ServedEmulator {
+        use std::io::BufRead;
+        let mut child = Command::new(emulator())
+            .arg("serve")
+            .args(args)
+            .stdout(std::process::Stdio::piped())
+            .spawn()
+            .expect("starting scanhil-emulator serve");
+        let stdout = child.stdout.take().expect("piped stdout");
+        let (tx, lines) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            for line in std::io::BufReader::new(stdout)
+                .lines()
+                .map_while(Result::ok)
+            {
+                if tx.send(line).is_err() {
+                    break;
+                }
+            }
+        });
+        let first = lines
+            .recv_timeout(std::time::Duration::from_secs(60))
+            .expect("the emulator prints a ready line");
+        let ready: serde_json::Value = serde_json::from_str(&first).expect("ready line is JSON");
+        assert_eq!(ready["event"], "ready", "{ready}");
+        ServedEmulator {
+            child,
+            ready,
+            lines,
+        }
+    }
+
+    /// The path of a link the emulator created (`"fsm"` or `"sensor"`), without its scheme.
+    pub fn path(&self, node: &str) -> String {
+        let uri = self.ready[node].as_str().expect("a link in the ready line");
+        uri.split_once(':').expect("scheme:path").1.to_owned()
+    }
+
+    /// Waits for the process to exit (at most `timeout`) and returns its exit code and the
+    /// summary line.
+    pub fn finish(mut self, timeout: std::time::Duration) -> (Option<i32>, serde_json::Value) {
+        let deadline = std::time::Instant::now() + timeout;
+        let status = loop {
+            if let Some(status) = self.child.try_wait().expect("waiting for the emulator") {
+                break status;
+            }
+            assert!(
+                std::time::Instant::now() < deadline,
+                "the emulator did not exit in {timeout:?}"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(10));
+        };
+        let summary = self
+            .lines
+            .try_iter()
+            .filter_map(|line| serde_json::from_str::<serde_json::Value>(&line).ok())
+            .find(|value| value["event"] == "summary")
+            .unwrap_or(serde_json::Value::Null);
+        (status.code(), summary)
+    }
+}
+
+impl Drop for ServedEmulator {
+    fn drop(&mut self) {
+        if let Ok(None) = self.child.try_wait() {
+            let _ = self.child.kill();
+            let _ = self.child.wait();
+        }
+    }
+}
+
+/// A minimal SLCAN host on a pty path, for tests that play the controller by hand.
+pub struct SlcanHost {
+    file: std::fs::File,
+    frames: std::sync::mpsc::Receiver<Message>,
+}
+
+impl SlcanHost {
+    /// Opens `path` and the channel (`O`).
+    pub fn open(path: &str) -> SlcanHost {
+        use scanhil_protocol::slcan::{SlcanDecoder, SlcanMessage};
+        use std::io::{Read, Write};
+        let mut file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .open(path)
+            .expect("opening the pty");
+        let mut reader = file.try_clone().expect("a second handle");
+        let (tx, frames) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut decoder = SlcanDecoder::new();
+            let mut buf = [0u8; 1024];
+            while let Ok(n) = reader.read(&mut buf) {
+                if n == 0 {
+                    break;
+                }
+                for event in decoder.push(&buf[..n]) {
+                    if let Ok(SlcanMessage::Frame(frame)) = event {
+                        if let Ok(message) = Message::decode(&frame) {
+                            if tx.send(message).is_err() {
+                                return;
+                            }
+                        }
+                    }
+                }
+            }
+        });
+        file.write_all(b"O\r").expect("opening the channel");
+        SlcanHost { file, frames }
+    }
+
+    /// Sends a message.
+    pub fn send(&mut self, message: &Message) {
+        use std::io::Write;
+        let frame = message.encode().expect("encodable");
+        let line = scanhil_protocol::slcan::encode_frame(&frame);
+        self.file
+            .write_all(line.as_bytes())
+            .expect("writing to the pty");
+    }
+
+    /// The next message within `timeout`.
+    pub fn recv(&self, timeout: std::time::Duration) -> Option<Message> {
+        self.frames.recv_timeout(timeout).ok()
+    }
+}
