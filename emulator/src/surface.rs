@@ -614,6 +614,31 @@ mod tests {
     }
 
     #[test]
+    fn dimple_fixtures_png_and_csv_are_the_same_surface() {
+        let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/surfaces");
+        let load = |file: &str| {
+            let json = format!(
+                r#"{{"kind": "height_map", "file": "{file}", "distance_mm": 130.0, "pixel_mm": 0.1}}"#
+            );
+            let config: SurfaceConfig = serde_json::from_str(&json).unwrap();
+            Surface::from_config(&config, &fixtures).unwrap()
+        };
+        let (png, csv) = (load("dimple.png"), load("dimple.csv"));
+        // Dimple bottom (1 mm deep) on the resting beam; plateau at 1 mm outside 4 mm.
+        for (x, y, want) in [(0.0, -10.0, -130.0), (4.5, -10.0, -129.0), (0.0, -5.5, -129.0)] {
+            for s in [&png, &csv] {
+                let z = s.height_at(x, y).unwrap();
+                assert!((z - want).abs() < 1e-5, "({x}, {y}): {z}");
+            }
+        }
+        for k in 0..50 {
+            let (x, y) = (-5.0 + 0.2 * f64::from(k), -10.0 + 0.1 * f64::from(k % 7));
+            let (a, b) = (png.height_at(x, y).unwrap(), csv.height_at(x, y).unwrap());
+            assert!((a - b).abs() < 1e-5, "({x}, {y}): {a} vs {b}");
+        }
+    }
+
+    #[test]
     fn bad_fields_and_files_are_named() {
         let config: SurfaceConfig = serde_json::from_str(
             r#"{"kind": "sphere", "radius_mm": -1.0, "center_distance_mm": 100.0}"#,
