@@ -9,6 +9,7 @@ pub mod link;
 pub mod loop_analysis;
 pub mod pid;
 pub mod plant_model;
+pub mod run;
 pub mod scan_controller;
 pub mod settings;
 pub mod sos;

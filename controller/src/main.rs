@@ -17,6 +17,10 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
+    /// Run a scan scenario over real links (the emulator on pty pairs by default).
+    Scan(commands::scan::Args),
+    /// Check a mirror node and a sensor, real or emulated, against the loop protocol.
+    Conformance(commands::conformance::Args),
     /// Decode a candump log, an SLCAN stream or an ILD 2300 byte stream into JSON lines.
     Decode(commands::decode::Args),
     /// Reconstruct a recording of samples: PLY points, height map PNG/CSV, JSON report.
@@ -26,6 +30,8 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
+        Command::Scan(args) => commands::scan::run(args),
+        Command::Conformance(args) => commands::conformance::run(args),
         Command::Decode(args) => commands::decode::run(args),
         Command::Reconstruct(args) => commands::reconstruct::run(args),
     };
