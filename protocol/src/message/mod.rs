@@ -559,16 +559,17 @@ impl Message {
                 });
             }
         }
-        let mut payload = vec![0u8; usize::from(spec.len)];
-        pack(spec.signals, &raw, &mut payload);
-        let id = CanId::standard(spec.id).ok_or(MessageError::Inconsistent {
+        let mut buffer = [0u8; crate::can::FD_MAX_LEN];
+        let payload = &mut buffer[..usize::from(spec.len)];
+        pack(spec.signals, &raw, payload);
+        let id = CanId::standard(spec.id).ok_or_else(|| MessageError::Inconsistent {
             message: spec.name,
             what: "id beyond 11 bits".to_owned(),
         })?;
         let frame = if spec.fd {
-            CanFrame::new_fd(id, &payload, true, false)
+            CanFrame::new_fd(id, payload, true, false)
         } else {
-            CanFrame::new(id, &payload)
+            CanFrame::new(id, payload)
         };
         frame.map_err(|e| MessageError::Inconsistent {
             message: spec.name,
