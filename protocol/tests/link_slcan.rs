@@ -137,7 +137,7 @@ async fn the_device_skips_garbage_answers_bel_and_resynchronises() {
     let path = pair.slave_path().to_owned();
     let mut device = CanLink::open_pty(pair, None, Role::Device).await.unwrap();
     let mut raw = SerialLine::open(&path, 115_200, "raw").unwrap();
-    raw.write_all(b"O\rxyz\rt1238DEADBEEF01020304\r\x00\xff\rt12\rt3213010203\rV\r")
+    raw.write_all(b"\r\rO\rxyz\rt1238DEADBEEF01020304\r\x00\xff\rt12\rt3213010203\rV\r")
         .await
         .unwrap();
     assert_eq!(
@@ -159,7 +159,7 @@ async fn the_device_skips_garbage_answers_bel_and_resynchronises() {
         let n = raw.read(&mut buf).await.unwrap();
         answers.extend_from_slice(&buf[..n]);
     }
-    assert_eq!(answers, b"\r\x07\x07\x07V1013\r");
+    assert_eq!(answers, b"\r\r\r\x07\x07\x07V1013\r");
     assert_eq!(device.stats().slcan.malformed_lines, 3);
 }
 

@@ -9,7 +9,7 @@
 //!
 //! Device: `O` opens the channel (BEL if already open), `C` closes it, `Sn` sets the bit rate
 //! (BEL while open, as Lawicel adapters do), `V`/`N` answer [`DEVICE_VERSION`] /
-//! [`DEVICE_SERIAL`]. Frames from the host are delivered while the channel is open and answered
+//! [`DEVICE_SERIAL`], an empty line (clients send a few CRs to flush the adapter) gets CR. Frames from the host are delivered while the channel is open and answered
 //! BEL while it is closed; malformed lines are answered BEL. Frames the device sends while the
 //! channel is closed are dropped, as an adapter does with bus traffic nobody asked for. The
 //! device does not acknowledge frames (no `z`): the wire stays lean at 20 kHz.
@@ -338,6 +338,8 @@ impl SlcanPort {
             }
             SlcanMessage::VersionRequest => SlcanMessage::Version(DEVICE_VERSION.to_owned()),
             SlcanMessage::SerialRequest => SlcanMessage::Serial(DEVICE_SERIAL.to_owned()),
+            // An empty line: clients (python-can) send a few CRs to flush the adapter's input.
+            SlcanMessage::Ack => SlcanMessage::Ack,
             other => {
                 self.malformed(format!("unexpected {other:?} from the host"));
                 SlcanMessage::Nack

@@ -98,10 +98,15 @@ impl SocketCanPort {
 /// What the operator can do about a failed open.
 fn open_hint(iface: &str, error: &io::Error) -> String {
     match error.raw_os_error() {
+        Some(nix::libc::ENODEV) if iface.starts_with("vcan") => format!(
+            "; no network interface `{iface}` (create it: `modprobe vcan; ip link add dev \
+             {iface} type vcan; ip link set up {iface}`; on a kernel without CAN run inside \
+             ci/vcan-vm.sh)"
+        ),
         Some(nix::libc::ENODEV) => format!(
-            "; no network interface `{iface}` (a virtual bus: `modprobe vcan; ip link add dev \
-             {iface} type vcan; ip link set up {iface}`; a real one: `ip link set {iface} type \
-             can bitrate 1000000; ip link set up {iface}`)"
+            "; no network interface `{iface}` (a real bus: plug the adapter in, then `ip link \
+             set {iface} type can bitrate 1000000; ip link set up {iface}`; a virtual one: \
+             `modprobe vcan; ip link add dev {iface} type vcan; ip link set up {iface}`)"
         ),
         Some(nix::libc::EAFNOSUPPORT) => "; this kernel has no CAN support (`modprobe can-raw`); \
              without it use `slcan:` over a pty, or run inside ci/vcan-vm.sh"
