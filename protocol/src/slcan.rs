@@ -9,9 +9,10 @@
 //! | `rIIIL` / `RIIIIIIIIL` | remote frame |
 //! | `dIIIL..` / `DIIIIIIIIL..` | CAN FD frame, DLC hex digit `0`-`F` |
 //! | `bIIIL..` / `BIIIIIIIIL..` | CAN FD frame with bit-rate switch |
-//! | `O`, `C`, `Sn` | open, close, bit rate `n` (`S0` 10 kbit/s .. `S8` 1 Mbit/s) |
+//! | `O`, `L`, `C`, `Sn` | open, open listen-only, close, bit rate `n` (`S0` 10 kbit/s .. `S8` 1 Mbit/s) |
+//! | `Yn` | CAN FD data bit rate `n` (CANable 2.0 / python-can: `Y2` 2 Mbit/s, `Y5` 5 Mbit/s) |
 //! | `V`, `N` | version / serial number request; `Vxxxx`, `Nxxxx` the replies |
-//! | empty line (a bare CR) | OK reply |
+//! | empty line (a bare CR) | OK reply (python-can also sends one as a no-op command) |
 //! | BEL | error reply |
 //! | `z`, `Z` | transmit acknowledgement some adapters send |
 //!
@@ -106,10 +107,16 @@ pub enum SlcanMessage {
     Frame(CanFrame),
     /// `O`: open the channel.
     Open,
+    /// `L`: open the channel listen-only.
+    ListenOnly,
     /// `C`: close the channel.
     Close,
     /// `Sn`: set the bit rate.
     Bitrate(SlcanBitrate),
+    /// `Yn`: set the CAN FD data bit rate by the adapter's digit `n` (`Y2` 2 Mbit/s, `Y5`
+    /// 5 Mbit/s on CANable 2.0 and in python-can; other digits are firmware-specific). One
+    /// digit, 0-9: a larger value is written as `Y9`.
+    DataBitrate(u8),
     /// `V`: ask for the version.
     VersionRequest,
     /// `N`: ask for the serial number.
@@ -282,8 +289,9 @@ fn parse_line(line: &[u8]) -> Result<SlcanMessage, SlcanErrorKind> {
         b't' | b'T' | b'r' | b'R' | b'd' | b'D' | b'b' | b'B' => {
             parse_frame(command, rest).map(SlcanMessage::Frame)
         }
-        b'O' | b'C' | b'N' | b'V' | b'z' | b'Z' if rest.is_empty() => Ok(match command {
+        b'O' | b'L' | b'C' | b'N' | b'V' | b'z' | b'Z' if rest.is_empty() => Ok(match command {
             b'O' => SlcanMessage::Open,
+            b'L' => SlcanMessage::ListenOnly,
             b'C' => SlcanMessage::Close,
             b'N' => SlcanMessage::SerialRequest,
             b'V' => SlcanMessage::VersionRequest,
@@ -299,6 +307,10 @@ fn parse_line(line: &[u8]) -> Result<SlcanMessage, SlcanErrorKind> {
                 .ok_or_else(|| bad_command(line)),
             _ => Err(bad_command(line)),
         },
+        b'Y' => match rest {
+            [digit] if digit.is_ascii_digit() => Ok(SlcanMessage::DataBitrate(digit - b'0')),
+            _ => Err(bad_command(line)),
+        },
         b'V' | b'N' => {
             if !rest.iter().all(|c| c.is_ascii_graphic() || *c == b' ') {
                 return Err(SlcanErrorKind::BadReplyText);
@@ -310,7 +322,7 @@ fn parse_line(line: &[u8]) -> Result<SlcanMessage, SlcanErrorKind> {
                 SlcanMessage::Serial(text)
             })
         }
-        b'O' | b'C' | b'z' | b'Z' => Err(bad_command(line)),
+        b'O' | b'L' | b'C' | b'z' | b'Z' => Err(bad_command(line)),
         other => Err(SlcanErrorKind::UnknownCommand(char::from(other))),
     }
 }
@@ -382,8 +394,10 @@ impl SlcanMessage {
         }
         let body = match self {
             SlcanMessage::Open => "O".to_owned(),
+            SlcanMessage::ListenOnly => "L".to_owned(),
             SlcanMessage::Close => "C".to_owned(),
             SlcanMessage::Bitrate(rate) => format!("S{}", rate.code()),
+            SlcanMessage::DataBitrate(code) => format!("Y{}", code.min(&9)),
             SlcanMessage::VersionRequest => "V".to_owned(),
             SlcanMessage::SerialRequest => "N".to_owned(),
             SlcanMessage::Version(text) => format!("V{text}"),

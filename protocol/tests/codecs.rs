@@ -179,8 +179,10 @@ proptest! {
         let text = text.trim().to_owned();
         let messages = vec![
             SlcanMessage::Open,
+            SlcanMessage::ListenOnly,
             SlcanMessage::Close,
             SlcanMessage::Bitrate(slcan::SlcanBitrate::from_code(code).unwrap()),
+            SlcanMessage::DataBitrate(code),
             SlcanMessage::VersionRequest,
             SlcanMessage::SerialRequest,
             SlcanMessage::Version(format!("1{text}")),
