@@ -1,5 +1,6 @@
 //! The scanhil host.
 
+pub mod accuracy;
 pub mod continuous;
 pub mod discretise;
 pub mod dual_tone;

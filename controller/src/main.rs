@@ -25,6 +25,12 @@ enum Command {
     Decode(commands::decode::Args),
     /// Reconstruct a recording of samples: PLY points, height map PNG/CSV, JSON report.
     Reconstruct(commands::reconstruct::Args),
+    /// Analyse a controller file: discrete sections, poles, zeros and the nominal closed loop.
+    Analyze(commands::analyze::Args),
+    /// Measure a frequency response (open-loop plant or closed loop) with a stepped sine.
+    Identify(commands::identify::Args),
+    /// Print a trajectory's frame rate and line spacing (JSON).
+    Trajectory(commands::trajectory::Args),
 }
 
 fn main() -> ExitCode {
@@ -34,6 +40,9 @@ fn main() -> ExitCode {
         Command::Conformance(args) => commands::conformance::run(args),
         Command::Decode(args) => commands::decode::run(args),
         Command::Reconstruct(args) => commands::reconstruct::run(args),
+        Command::Analyze(args) => commands::analyze::run(args),
+        Command::Identify(args) => commands::identify::run(args),
+        Command::Trajectory(args) => commands::trajectory::run(args),
     };
     match result {
         Ok(code) => code,
