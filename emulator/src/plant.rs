@@ -27,8 +27,11 @@ use crate::angle_sensor::AngleSensor;
 use crate::drive_model::DriveModel;
 use crate::integrator::{StabilityError, Stepper};
 use crate::mirror::SensingAxis;
+use crate::optics::{Optics, OpticsError};
 use crate::power::{PowerAction, PowerMonitor, coil_resistance_ohm};
 use crate::scene::{Part, Scene};
+use crate::sensor::{Ild2300, IldSample, SensorError};
+use crate::surface::{Surface, SurfaceError};
 
 /// Why the plant could not be built or stepped.
 #[derive(Debug, thiserror::Error)]
@@ -40,6 +43,30 @@ pub enum PlantError {
         scene: String,
         /// The stability check's finding.
         source: StabilityError,
+    },
+    /// The scene's surface could not be built (e.g. a height map file is unreadable).
+    #[error("scene {scene}: surface: {source}")]
+    Surface {
+        /// The scene's name.
+        scene: String,
+        /// What went wrong.
+        source: SurfaceError,
+    },
+    /// The scene's optics section is unusable.
+    #[error("scene {scene}: optics: {source}")]
+    Optics {
+        /// The scene's name.
+        scene: String,
+        /// What went wrong.
+        source: OpticsError,
+    },
+    /// The scene's sensor section is unusable.
+    #[error("scene {scene}: sensor: {source}")]
+    Sensor {
+        /// The scene's name.
+        scene: String,
+        /// What went wrong.
+        source: SensorError,
     },
     /// A coil current command was NaN or infinite; the plant state is unchanged.
     #[error("period {period_index}: coil current command is not finite (a = {a_a} A, b = {b_a} A)")]
@@ -99,6 +126,101 @@ pub struct PlantStep {
     pub events: Vec<PlantEvent>,
     /// Whether a power fault holds the currents at zero.
     pub faulted: bool,
+    /// The triangulation sensor's samples whose instants fall in `(k Ta, (k+1) Ta]` (only with
+    /// the `sensor` part).
+    #[serde(serialize_with = "serialize_samples")]
+    pub sensor_samples: Vec<IldSample>,
+}
+
+/// Writes ILD samples as JSON objects (`t_s`, `counter`, `value`, `true_distance_mm`).
+fn serialize_samples<S: serde::Serializer>(
+    samples: &[IldSample],
+    serializer: S,
+) -> Result<S::Ok, S::Error> {
+    #[derive(Serialize)]
+    struct SampleJson {
+        t_s: f64,
+        counter: u32,
+        value: scanhil_protocol::ild::IldValue,
+        true_distance_mm: Option<f64>,
+    }
+    serializer.collect_seq(samples.iter().map(|s| SampleJson {
+        t_s: s.t_s,
+        counter: s.counter,
+        value: s.value,
+        true_distance_mm: s.true_distance_mm,
+    }))
+}
+
+/// The optical path and, optionally, the triangulation sensor behind it.
+#[derive(Debug, Clone)]
+struct OpticalChain {
+    optics: Optics,
+    sensor: Option<Ild2300>,
+}
+
+impl OpticalChain {
+    /// Builds the chain if the scene lists `optics` (validation made sure a surface is there).
+    fn from_scene(scene: &Scene) -> Result<Option<OpticalChain>, PlantError> {
+        let Some(surface_config) = scene.surface.as_ref().filter(|_| scene.has(Part::Optics))
+        else {
+            return Ok(None);
+        };
+        let name = || scene.name.clone();
+        let base_dir = scene.base_dir().unwrap_or(std::path::Path::new("."));
+        let surface = Surface::from_config(surface_config, base_dir).map_err(|source| {
+            PlantError::Surface {
+                scene: name(),
+                source,
+            }
+        })?;
+        let optics = Optics::new(&scene.optics.clone().unwrap_or_default(), surface)
+            .map_err(|source| PlantError::Optics {
+                scene: name(),
+                source,
+            })?
+            .with_shading(scene.has(Part::Shading));
+        let sensor = if scene.has(Part::Sensor) {
+            let config = scene.sensor.clone().unwrap_or_default();
+            let sensor = Ild2300::new(&config, scene.seed, scene.has(Part::SensorNoise)).map_err(
+                |source| PlantError::Sensor {
+                    scene: name(),
+                    source,
+                },
+            )?;
+            Some(sensor)
+        } else {
+            None
+        };
+        Ok(Some(OpticalChain { optics, sensor }))
+    }
+
+    /// The sensor's samples in `(start_s, end_s]`, with the mirror angles interpolated
+    /// linearly between their values at the two ends.
+    fn samples(
+        &mut self,
+        start_s: f64,
+        end_s: f64,
+        start_rad: SensingPair,
+        end_rad: SensingPair,
+    ) -> Vec<IldSample> {
+        let Some(sensor) = &mut self.sensor else {
+            return Vec::new();
+        };
+        let instants: Vec<_> = sensor.sample_instants(start_s, end_s).collect();
+        instants
+            .into_iter()
+            .map(|instant| {
+                let f = (instant.t_s - start_s) / (end_s - start_s);
+                let angles = SensingPair {
+                    alpha: start_rad.alpha + f * (end_rad.alpha - start_rad.alpha),
+                    beta: start_rad.beta + f * (end_rad.beta - start_rad.beta),
+                };
+                let reading = self.optics.observe(angles);
+                sensor.measure(instant, &reading.outcome)
+            })
+            .collect()
+    }
 }
 
 /// The plant.
@@ -115,6 +237,7 @@ pub struct Plant {
     power: Option<PowerMonitor>,
     resistance_ohm: f64,
     angle_sensor: Option<AngleSensor>,
+    optical: Option<OpticalChain>,
     pending_a: ActuatorPair,
     period_index: u64,
 }
@@ -159,6 +282,7 @@ impl Plant {
             angle_sensor: scene
                 .has(Part::AngleSensorNoise)
                 .then(|| AngleSensor::new(&scene.angle_sensor, scene.seed)),
+            optical: OpticalChain::from_scene(scene)?,
             pending_a: ActuatorPair::default(),
             period_index: 0,
         })
@@ -214,6 +338,26 @@ impl Plant {
         }
     }
 
+    /// The true surface (ground truth for scoring a scan), when the `optics` part is active.
+    #[must_use]
+    pub fn surface(&self) -> Option<&Surface> {
+        self.optical.as_ref().map(|chain| chain.optics.surface())
+    }
+
+    /// The optical path, when the `optics` part is active.
+    #[must_use]
+    pub fn optics(&self) -> Option<&Optics> {
+        self.optical.as_ref().map(|chain| &chain.optics)
+    }
+
+    /// The triangulation sensor, when the `sensor` part is active.
+    #[must_use]
+    pub fn sensor(&self) -> Option<&Ild2300> {
+        self.optical
+            .as_ref()
+            .and_then(|chain| chain.sensor.as_ref())
+    }
+
     /// Clears a latched power fault.
     pub fn reset_fault(&mut self) {
         if let Some(power) = &mut self.power {
@@ -262,10 +406,17 @@ impl Plant {
             mean_power_w = Some(power.mean_w());
             faulted = power.faulted();
         }
+        let start_rad = self.true_angles_rad();
         if let Some(stepper) = &mut self.stepper {
             stepper.step(&mut self.state, [applied.a, applied.b]);
         }
         let true_angles_rad = self.true_angles_rad();
+        let start_s = self.period_index as f64 * self.period_s;
+        let end_s = (self.period_index + 1) as f64 * self.period_s;
+        let sensor_samples = match &mut self.optical {
+            Some(chain) => chain.samples(start_s, end_s, start_rad, true_angles_rad),
+            None => Vec::new(),
+        };
         let measured_angles_rad = match &mut self.angle_sensor {
             Some(sensor) => sensor.measure(true_angles_rad),
             None => true_angles_rad,
@@ -274,7 +425,7 @@ impl Plant {
         self.period_index += 1;
         Ok(PlantStep {
             period_index,
-            t_end_s: self.period_index as f64 * self.period_s,
+            t_end_s: end_s,
             measured_angles_rad,
             true_angles_rad,
             applied_currents_a: applied,
@@ -282,6 +433,7 @@ impl Plant {
             mean_power_w,
             events,
             faulted,
+            sensor_samples,
         })
     }
 }

@@ -17,12 +17,10 @@ use crate::angle_sensor::AngleSensorConfig;
 use crate::cross_talk::CrossTalkConfig;
 use crate::integrator::IntegratorConfig;
 use crate::mirror::MirrorConfig;
+use crate::optics::OpticsConfig;
 use crate::power::PowerLimitConfig;
-
-// TEMPORARY until the optics half publishes its config types.
-type SurfaceConfig = serde_json::Value;
-type OpticsConfig = serde_json::Value;
-type SensorConfig = serde_json::Value;
+use crate::sensor::SensorConfig;
+use crate::surface::SurfaceConfig;
 
 /// The paper's control rate, in Hz (Ta = 50 us).
 pub const DEFAULT_CONTROL_RATE_HZ: f64 = 20_000.0;

@@ -122,7 +122,10 @@ fn print_table(report: &Report<'_>, moves: bool) -> std::io::Result<()> {
             .events
             .iter()
             .map(|e| {
-                serde_json::to_value(e).map_or_else(|_| "?".into(), |v| v["event"].as_str().unwrap_or("?").to_string())
+                serde_json::to_value(e).map_or_else(
+                    |_| "?".into(),
+                    |v| v["event"].as_str().unwrap_or("?").to_string(),
+                )
             })
             .collect();
         writeln!(
