@@ -418,6 +418,69 @@ fn reply_code(line: &str) -> Option<(char, ReplyCode)> {
     ))
 }
 
+/// What `GETINFO` reports: the device's identity and measuring range, as
+/// `Key: value` lines (`Name: ILD2300`, `Measuring range: 100.00mm`, ...).
+#[derive(Debug, Clone, PartialEq)]
+pub struct IldInfo {
+    /// `Name` (`ILD2300`).
+    pub name: String,
+    /// `Serial`.
+    pub serial: String,
+    /// `Article` (the article number).
+    pub article: String,
+    /// `Measuring range` in mm (the span, MR).
+    pub measuring_range_mm: f64,
+    /// `Version` (firmware).
+    pub version: String,
+}
+
+impl IldInfo {
+    /// The reply lines a device sends for `GETINFO` (without echo and prompt).
+    #[must_use]
+    pub fn reply_lines(&self) -> Vec<String> {
+        vec![
+            format!("Name: {}", self.name),
+            format!("Serial: {}", self.serial),
+            format!("Article: {}", self.article),
+            format!("Measuring range: {:.2}mm", self.measuring_range_mm),
+            format!("Version: {}", self.version),
+        ]
+    }
+
+    /// Reads a `GETINFO` reply (host side); unknown keys (Option, MAC-Address, ...) are
+    /// ignored, missing ones left empty.
+    ///
+    /// # Errors
+    /// The refused reply's error, or a text naming a missing or unreadable measuring range.
+    pub fn from_reply(reply: &IldReply) -> Result<IldInfo, String> {
+        if let Some(error) = &reply.error {
+            return Err(format!(
+                "GETINFO refused: E{:02} {}",
+                error.code, error.text
+            ));
+        }
+        let value = |key: &str| {
+            reply.lines.iter().find_map(|line| {
+                let (k, v) = line.split_once(':')?;
+                (k.trim().eq_ignore_ascii_case(key)).then(|| v.trim().to_owned())
+            })
+        };
+        let range_text = value("Measuring range").ok_or("GETINFO reply has no measuring range")?;
+        let measuring_range_mm = range_text
+            .trim_end_matches("mm")
+            .trim()
+            .parse::<f64>()
+            .map_err(|_| format!("GETINFO measuring range {range_text:?} is not `<number>mm`"))?;
+        Ok(IldInfo {
+            name: value("Name").unwrap_or_default(),
+            serial: value("Serial").unwrap_or_default(),
+            article: value("Article").unwrap_or_default(),
+            measuring_range_mm,
+            version: value("Version").unwrap_or_default(),
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -441,6 +504,29 @@ mod tests {
             assert_eq!(IldCommand::parse(&line), Ok(command), "{line:?}");
         }
         assert_eq!(IldCommand::MeasRate(Some(20.0)).encode(), "MEASRATE 20\r");
+    }
+
+    #[test]
+    fn getinfo_reply_carries_the_measuring_range() {
+        let info = IldInfo {
+            name: "ILD2300".to_owned(),
+            serial: "1234".to_owned(),
+            article: "4120xxx".to_owned(),
+            measuring_range_mm: 100.0,
+            version: "emulated".to_owned(),
+        };
+        let mut lines = info.reply_lines();
+        lines.insert(2, "MAC-Address: 00-0C-12-01-02-03".to_owned());
+        let reply = IldReply {
+            echo: Some("GETINFO".to_owned()),
+            lines,
+            ..IldReply::default()
+        };
+        let parsed = IldReplyParser::new(true).push(reply.encode().as_bytes());
+        assert_eq!(IldInfo::from_reply(&parsed[0]), Ok(info));
+        assert!(reply.encode().contains("\r\nMeasuring range: 100.00mm\r\n"));
+        let no_range = IldReply::default();
+        assert!(IldInfo::from_reply(&no_range).is_err());
     }
 
     #[test]

@@ -9,6 +9,6 @@ pub mod command;
 pub mod stream;
 pub mod value;
 
-pub use command::{IldCommand, IldCommandError, IldReply, IldReplyParser};
+pub use command::{IldCommand, IldCommandError, IldInfo, IldReply, IldReplyParser};
 pub use stream::{IldDecoder, IldStreamError, IldWord, encode_cycle, encode_word};
 pub use value::{IldError, IldValue, MeasuringRange};
