@@ -513,10 +513,10 @@ mod tests {
                 .point(alpha_deg.to_radians(), beta_deg.to_radians(), z_meas(&r))
                 .z
         };
-        // beta 1.5 deg puts the spot 3.5 mm from the stud's axis (x = 0): on the ring
+        // beta 1.3 deg puts the spot 4.0 mm from the stud's axis (x = 0): mid-ring
         // (3.25 to 4.7 mm); alpha -1.4 deg puts it at y = -16.6, on the top face beyond it.
         let top = z_at(-1.4, 0.0);
-        let ring = z_at(0.0, 1.5);
+        let ring = z_at(0.0, 1.3);
         assert!(
             ((ring - top) - duplo::STUD_HEIGHT_MM).abs() < 1e-9,
             "{ring} - {top} = {}",
@@ -541,7 +541,13 @@ mod tests {
         assert!(at_edge < 140.0 && at_edge > 140.0 - 0.05, "{at_edge}");
         // Fully on the upper level, the footprint's mean is the centre's distance (within
         // 0.1 um: the sunflower pattern is not exactly centred).
-        let point = optics(step, OpticsConfig { shading: false, ..OpticsConfig::default() });
+        let point = optics(
+            step,
+            OpticsConfig {
+                shading: false,
+                ..OpticsConfig::default()
+            },
+        );
         let away = z_meas(&o.observe(angles(0.0, 0.2)));
         let away_point = z_meas(&point.observe(angles(0.0, 0.2)));
         assert!((away - away_point).abs() < 1e-4, "{away} vs {away_point}");

@@ -22,7 +22,9 @@ use serde::{Deserialize, Serialize};
 use crate::optics::OpticalOutcome;
 
 /// The measuring rates the ILD 2300 offers (`MEASRATE`), Hz.
-pub const MEASURING_RATES_HZ: [f64; 7] = [1_500.0, 2_500.0, 5_000.0, 10_000.0, 20_000.0, 30_000.0, 49_140.0];
+pub const MEASURING_RATES_HZ: [f64; 7] = [
+    1_500.0, 2_500.0, 5_000.0, 10_000.0, 20_000.0, 30_000.0, 49_140.0,
+];
 /// The sensor's default measuring rate, Hz.
 pub const DEFAULT_MEASURING_RATE_HZ: f64 = 20_000.0;
 /// Default distance noise (rms), um: the resolution quoted for the ILD 2300-100.
@@ -130,8 +132,17 @@ impl Ild2300 {
     /// # Errors
     /// [`SensorError`] naming the bad field.
     pub fn new(config: &SensorConfig, seed: u64, noise: bool) -> Result<Ild2300, SensorError> {
-        let bad = |field, value, requirement| Err(SensorError { field, value, requirement });
-        if !MEASURING_RATES_HZ.iter().any(|r| (r - config.measuring_rate_hz).abs() < 1e-6) {
+        let bad = |field, value, requirement| {
+            Err(SensorError {
+                field,
+                value,
+                requirement,
+            })
+        };
+        if !MEASURING_RATES_HZ
+            .iter()
+            .any(|r| (r - config.measuring_rate_hz).abs() < 1e-6)
+        {
             return bad(
                 "measuring_rate_hz",
                 config.measuring_rate_hz,
@@ -145,10 +156,18 @@ impl Ild2300 {
             return bad("clock_offset_s", config.clock_offset_s, "finite");
         }
         if !(config.clock_drift_ppm.is_finite() && config.clock_drift_ppm.abs() < 1e5) {
-            return bad("clock_drift_ppm", config.clock_drift_ppm, "finite, |drift| < 1e5 ppm");
+            return bad(
+                "clock_drift_ppm",
+                config.clock_drift_ppm,
+                "finite, |drift| < 1e5 ppm",
+            );
         }
         if u64::from(config.counter_start) >= COUNTER_MODULUS {
-            return bad("counter_start", f64::from(config.counter_start), "below 2^18");
+            return bad(
+                "counter_start",
+                f64::from(config.counter_start),
+                "below 2^18",
+            );
         }
         let span = config.range.span_mm;
         if !(span.is_finite() && span > 0.0 && config.range.start_mm.is_finite()) {
@@ -187,7 +206,11 @@ impl Ild2300 {
 
     /// The sample instants in `(start_s, end_s]` of control time, in order. Consecutive
     /// periods computed with the same boundary value share no instant and miss none.
-    pub fn sample_instants(&self, start_s: f64, end_s: f64) -> impl Iterator<Item = SampleInstant> + use<> {
+    pub fn sample_instants(
+        &self,
+        start_s: f64,
+        end_s: f64,
+    ) -> impl Iterator<Item = SampleInstant> + use<> {
         let (offset, rate) = (self.config.clock_offset_s, self.effective_rate_hz);
         let last_at_or_before = |t: f64| ((t - offset) * rate).floor();
         let first = (last_at_or_before(start_s) + 1.0).max(0.0);
@@ -197,17 +220,26 @@ impl Ild2300 {
         } else {
             (0, 0)
         };
-        (first..last).map(move |index| SampleInstant { index, t_s: offset + index as f64 / rate })
+        (first..last).map(move |index| SampleInstant {
+            index,
+            t_s: offset + index as f64 / rate,
+        })
     }
 
     /// The sensor's output at `instant` for what the optics deliver.
     pub fn measure(&mut self, instant: SampleInstant, outcome: &OpticalOutcome) -> IldSample {
-        let counter = ((u64::from(self.config.counter_start) + instant.index) % COUNTER_MODULUS) as u32;
+        let counter =
+            ((u64::from(self.config.counter_start) + instant.index) % COUNTER_MODULUS) as u32;
         let true_distance_mm = match outcome {
             OpticalOutcome::Distance { z_meas_mm } => Some(*z_meas_mm),
             OpticalOutcome::Miss | OpticalOutcome::Shaded(_) => None,
         };
-        IldSample { t_s: instant.t_s, counter, value: self.value_for(outcome), true_distance_mm }
+        IldSample {
+            t_s: instant.t_s,
+            counter,
+            value: self.value_for(outcome),
+            true_distance_mm,
+        }
     }
 
     /// The value the sensor sends for an optical outcome (noise drawn when enabled).
@@ -218,7 +250,9 @@ impl Ild2300 {
         let noisy = z_meas_mm + self.noise.map_or(0.0, |n| n.sample(&mut self.rng));
         let range = self.config.range;
         let nearest = range.digital_to_mm(0).unwrap_or(range.start_mm);
-        let farthest = range.digital_to_mm(DIGITAL_MAX).unwrap_or(range.start_mm + range.span_mm);
+        let farthest = range
+            .digital_to_mm(DIGITAL_MAX)
+            .unwrap_or(range.start_mm + range.span_mm);
         match range.mm_to_digital(noisy) {
             None => IldValue::Error(IldError::CannotEvaluate),
             Some(_) if noisy < nearest => IldValue::Error(IldError::PeakBeforeRange),
@@ -244,22 +278,46 @@ mod tests {
     /// Samples over one second, asked period by period as the plant does at 20 kHz.
     fn samples_per_second(s: &Ild2300) -> u64 {
         let period = 1.0 / 20_000.0;
-        (0..20_000u32).map(|k| s.sample_instants(f64::from(k) * period, f64::from(k + 1) * period).count() as u64).sum()
+        (0..20_000u32)
+            .map(|k| {
+                s.sample_instants(f64::from(k) * period, f64::from(k + 1) * period)
+                    .count() as u64
+            })
+            .sum()
     }
 
     #[test]
     fn clock_gives_the_rate_per_second_at_20_and_49_14_khz() {
         for rate in [20_000.0, 49_140.0, 1_500.0] {
-            let s = sensor(SensorConfig { measuring_rate_hz: rate, ..SensorConfig::default() }, false);
+            let s = sensor(
+                SensorConfig {
+                    measuring_rate_hz: rate,
+                    ..SensorConfig::default()
+                },
+                false,
+            );
             assert_eq!(samples_per_second(&s), rate as u64, "{rate}");
         }
-        let fast = sensor(SensorConfig { clock_drift_ppm: 100.0, ..SensorConfig::default() }, false);
+        let fast = sensor(
+            SensorConfig {
+                clock_drift_ppm: 100.0,
+                ..SensorConfig::default()
+            },
+            false,
+        );
         assert_eq!(samples_per_second(&fast), 20_002);
     }
 
     #[test]
     fn instants_follow_the_offset_and_partition_periods() {
-        let s = sensor(SensorConfig { measuring_rate_hz: 49_140.0, clock_offset_s: 1e-5, ..SensorConfig::default() }, false);
+        let s = sensor(
+            SensorConfig {
+                measuring_rate_hz: 49_140.0,
+                clock_offset_s: 1e-5,
+                ..SensorConfig::default()
+            },
+            false,
+        );
         let first: Vec<_> = s.sample_instants(0.0, 50e-6).collect();
         assert_eq!(first.len(), 2);
         assert_eq!(first[0].index, 0);
@@ -273,7 +331,13 @@ mod tests {
 
     #[test]
     fn counter_is_18_bit_and_wraps() {
-        let mut s = sensor(SensorConfig { counter_start: 262_142, ..SensorConfig::default() }, false);
+        let mut s = sensor(
+            SensorConfig {
+                counter_start: 262_142,
+                ..SensorConfig::default()
+            },
+            false,
+        );
         let counters: Vec<u32> = s
             .sample_instants(0.0, 3.5 / 20_000.0)
             .collect::<Vec<_>>()
@@ -281,26 +345,51 @@ mod tests {
             .map(|i| s.measure(i, &distance(100.0)).counter)
             .collect();
         assert_eq!(counters, vec![262_143, 0, 1]);
-        assert!(Ild2300::new(&SensorConfig { counter_start: 1 << 18, ..SensorConfig::default() }, 0, false).is_err());
+        assert!(
+            Ild2300::new(
+                &SensorConfig {
+                    counter_start: 1 << 18,
+                    ..SensorConfig::default()
+                },
+                0,
+                false
+            )
+            .is_err()
+        );
     }
 
     #[test]
     fn error_values_out_of_range_and_when_shaded() {
         let mut s = sensor(SensorConfig::default(), false);
-        assert_eq!(s.value_for(&distance(60.0)), IldValue::Error(IldError::PeakBeforeRange));
-        assert_eq!(s.value_for(&distance(180.0)), IldValue::Error(IldError::PeakAfterRange));
-        assert_eq!(s.value_for(&OpticalOutcome::Miss), IldValue::Error(IldError::NoPeak));
+        assert_eq!(
+            s.value_for(&distance(60.0)),
+            IldValue::Error(IldError::PeakBeforeRange)
+        );
+        assert_eq!(
+            s.value_for(&distance(180.0)),
+            IldValue::Error(IldError::PeakAfterRange)
+        );
+        assert_eq!(
+            s.value_for(&OpticalOutcome::Miss),
+            IldValue::Error(IldError::NoPeak)
+        );
         assert_eq!(
             s.value_for(&OpticalOutcome::Shaded(ShadeReason::ReflectionPathBlocked)),
             IldValue::Error(IldError::NoPeak)
         );
         // In the reserves: still a distance, in the reserve codes.
-        let IldValue::Distance(near) = s.value_for(&distance(69.5)) else { panic!("reserve") };
+        let IldValue::Distance(near) = s.value_for(&distance(69.5)) else {
+            panic!("reserve")
+        };
         assert!(near < scanhil_protocol::ild::value::DIGITAL_RANGE_START);
-        let IldValue::Distance(far) = s.value_for(&distance(170.5)) else { panic!("reserve") };
+        let IldValue::Distance(far) = s.value_for(&distance(170.5)) else {
+            panic!("reserve")
+        };
         assert!(far > scanhil_protocol::ild::value::DIGITAL_RANGE_END);
         // In range: the nearest raw step.
-        let IldValue::Distance(mid) = s.value_for(&distance(130.0)) else { panic!("range") };
+        let IldValue::Distance(mid) = s.value_for(&distance(130.0)) else {
+            panic!("range")
+        };
         let back = MeasuringRange::ILD2300_100.digital_to_mm(mid).unwrap();
         assert!((back - 130.0).abs() <= 0.5 * MeasuringRange::ILD2300_100.mm_per_digit() + 1e-12);
     }
@@ -309,7 +398,15 @@ mod tests {
     fn noise_has_its_rms_and_is_seeded() {
         let range = MeasuringRange::ILD2300_100;
         let draw = |seed: u64| {
-            let mut s = Ild2300::new(&SensorConfig { noise_rms_um: 5.0, ..SensorConfig::default() }, seed, true).unwrap();
+            let mut s = Ild2300::new(
+                &SensorConfig {
+                    noise_rms_um: 5.0,
+                    ..SensorConfig::default()
+                },
+                seed,
+                true,
+            )
+            .unwrap();
             (0..20_000)
                 .map(|_| match s.value_for(&distance(120.0)) {
                     IldValue::Distance(d) => range.digital_to_mm(d).unwrap() - 120.0,
@@ -327,7 +424,15 @@ mod tests {
 
     #[test]
     fn bad_config_is_named() {
-        let err = Ild2300::new(&SensorConfig { measuring_rate_hz: 12_345.0, ..SensorConfig::default() }, 0, false).unwrap_err();
+        let err = Ild2300::new(
+            &SensorConfig {
+                measuring_rate_hz: 12_345.0,
+                ..SensorConfig::default()
+            },
+            0,
+            false,
+        )
+        .unwrap_err();
         assert_eq!(err.field, "measuring_rate_hz");
         let c: SensorConfig = serde_json::from_str(r#"{"measuring_rate_hz": 49140.0}"#).unwrap();
         assert_eq!(c.noise_rms_um, 1.5);

@@ -625,7 +625,11 @@ mod tests {
         };
         let (png, csv) = (load("dimple.png"), load("dimple.csv"));
         // Dimple bottom (1 mm deep) on the resting beam; plateau at 1 mm outside 4 mm.
-        for (x, y, want) in [(0.0, -10.0, -130.0), (4.5, -10.0, -129.0), (0.0, -5.5, -129.0)] {
+        for (x, y, want) in [
+            (0.0, -10.0, -130.0),
+            (4.5, -10.0, -129.0),
+            (0.0, -5.5, -129.0),
+        ] {
             for s in [&png, &csv] {
                 let z = s.height_at(x, y).unwrap();
                 assert!((z - want).abs() < 1e-5, "({x}, {y}): {z}");

@@ -103,13 +103,12 @@ impl Face {
                 let t = plane_t(origin, dir, center, normal)?;
                 let p = origin + t * dir;
                 let d = p - center;
-                (within(t, t_max) && d.dot(u).abs() <= *half_u && d.dot(v).abs() <= *half_v).then(
-                    || Hit {
-                        t_mm: t,
-                        point_mm: p,
-                        normal: *normal,
-                    },
-                )
+                let inside = d.dot(u).abs() <= *half_u && d.dot(v).abs() <= *half_v;
+                (within(t, t_max) && inside).then_some(Hit {
+                    t_mm: t,
+                    point_mm: p,
+                    normal: *normal,
+                })
             }
             Face::Annulus {
                 center,

@@ -239,7 +239,7 @@ impl HeightField {
         } else {
             return None;
         };
-        if !(t0 <= t1) {
+        if t0.is_nan() || t1.is_nan() || t0 > t1 {
             return None;
         }
         let start = origin + t0 * dir;
