@@ -434,6 +434,25 @@ pub struct IldInfo {
     pub version: String,
 }
 
+/// Why a `GETINFO` reply could not be read.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum IldInfoError {
+    /// The device answered with an error.
+    #[error("GETINFO refused: E{code:02} {text}")]
+    Refused {
+        /// The error number.
+        code: u8,
+        /// Its text.
+        text: String,
+    },
+    /// No `Measuring range:` line.
+    #[error("GETINFO reply has no `Measuring range:` line")]
+    NoMeasuringRange,
+    /// A measuring range that is not `<number>mm`.
+    #[error("GETINFO measuring range {0:?} is not `<number>mm`")]
+    BadMeasuringRange(String),
+}
+
 impl IldInfo {
     /// The reply lines a device sends for `GETINFO` (without echo and prompt).
     #[must_use]
@@ -465,12 +484,12 @@ impl IldInfo {
                 (k.trim().eq_ignore_ascii_case(key)).then(|| v.trim().to_owned())
             })
         };
-        let range_text = value("Measuring range").ok_or("GETINFO reply has no measuring range")?;
+        let range_text = value("Measuring range").ok_or(IldInfoError::NoMeasuringRange)?;
         let measuring_range_mm = range_text
             .trim_end_matches("mm")
             .trim()
             .parse::<f64>()
-            .map_err(|_| format!("GETINFO measuring range {range_text:?} is not `<number>mm`"))?;
+            .map_err(|_| IldInfoError::BadMeasuringRange(range_text.clone()))?;
         Ok(IldInfo {
             name: value("Name").unwrap_or_default(),
             serial: value("Serial").unwrap_or_default(),
@@ -526,7 +545,10 @@ mod tests {
         assert_eq!(IldInfo::from_reply(&parsed[0]), Ok(info));
         assert!(reply.encode().contains("\r\nMeasuring range: 100.00mm\r\n"));
         let no_range = IldReply::default();
-        assert!(IldInfo::from_reply(&no_range).is_err());
+        assert_eq!(
+            IldInfo::from_reply(&no_range),
+            Err(IldInfoError::NoMeasuringRange)
+        );
     }
 
     #[test]
