@@ -371,3 +371,25 @@ async fn the_capture_records_every_frame_as_a_candump_line_in_order() {
         "{text}"
     );
 }
+
+#[tokio::test]
+async fn the_device_honours_listen_only_and_the_fd_data_bitrate_command() {
+    let pair = PtyPair::open().unwrap();
+    let path = pair.slave_path().to_owned();
+    let mut device = CanLink::open_pty(pair, None, Role::Device).await.unwrap();
+    let mut raw = SerialLine::open(&path, 115_200, "raw").unwrap();
+    // Y5 while closed: ok; L: open listen-only; a frame: refused; C, O: open; Y5 while open:
+    // refused; a frame: delivered.
+    raw.write_all(b"Y5\rL\rt1230\rC\rO\rY5\rt1231AB\r")
+        .await
+        .unwrap();
+    assert_eq!(device.recv().await.unwrap(), std_frame(0x123, &[0xAB]));
+    let mut answers = Vec::new();
+    while answers.len() < 6 {
+        let mut buf = [0; 64];
+        let n = raw.read(&mut buf).await.unwrap();
+        answers.extend_from_slice(&buf[..n]);
+    }
+    assert_eq!(answers, b"\r\r\x07\r\r\x07");
+    assert_eq!(device.stats().slcan.refused_frames, 1);
+}

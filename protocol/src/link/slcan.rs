@@ -7,8 +7,9 @@
 //! `Z`, bare CR) are swallowed; an unsolicited BEL means the adapter refused a frame and is
 //! returned as an error by the next receive.
 //!
-//! Device: `O` opens the channel (BEL if already open), `C` closes it, `Sn` sets the bit rate
-//! (BEL while open, as Lawicel adapters do), `V`/`N` answer [`DEVICE_VERSION`] /
+//! Device: `O` opens the channel (BEL if already open), `L` opens it listen-only (host frames
+//! are then refused with BEL), `C` closes it, `Sn` sets the bit rate and `Yn` the FD data bit
+//! rate (both BEL while open, as Lawicel adapters do), `V`/`N` answer [`DEVICE_VERSION`] /
 //! [`DEVICE_SERIAL`], an empty line (clients send a few CRs to flush the adapter) gets CR. Frames from the host are delivered while the channel is open and answered
 //! BEL while it is closed; malformed lines are answered BEL. Frames the device sends while the
 //! channel is closed are dropped, as an adapter does with bus traffic nobody asked for. The
@@ -64,6 +65,8 @@ pub struct SlcanPort {
     /// An error to report on the next receive (host: an unsolicited BEL).
     pending_error: Option<LinkError>,
     channel_open: bool,
+    /// Device: the host opened the channel with `L` (listen-only): its frames are refused.
+    listen_only: bool,
     bitrate: SlcanBitrate,
     counters: SlcanCounters,
 }
@@ -86,6 +89,7 @@ impl SlcanPort {
             pending_tx: Vec::new(),
             pending_error: None,
             channel_open: false,
+            listen_only: false,
             bitrate,
             counters: SlcanCounters::default(),
         };
@@ -314,7 +318,7 @@ impl SlcanPort {
 
     fn absorb_as_device(&mut self, message: SlcanMessage) {
         let answer = match message {
-            SlcanMessage::Frame(frame) if self.channel_open => {
+            SlcanMessage::Frame(frame) if self.channel_open && !self.listen_only => {
                 self.frames.push_back(frame);
                 return;
             }
@@ -322,16 +326,23 @@ impl SlcanPort {
                 self.counters.refused_frames += 1;
                 SlcanMessage::Nack
             }
-            SlcanMessage::Open if self.channel_open => SlcanMessage::Nack,
-            SlcanMessage::Open => {
+            SlcanMessage::Open | SlcanMessage::ListenOnly if self.channel_open => {
+                SlcanMessage::Nack
+            }
+            SlcanMessage::Open | SlcanMessage::ListenOnly => {
                 self.channel_open = true;
+                self.listen_only = message == SlcanMessage::ListenOnly;
                 SlcanMessage::Ack
             }
             SlcanMessage::Close => {
                 self.channel_open = false;
                 SlcanMessage::Ack
             }
-            SlcanMessage::Bitrate(_) if self.channel_open => SlcanMessage::Nack,
+            SlcanMessage::Bitrate(_) | SlcanMessage::DataBitrate(_) if self.channel_open => {
+                SlcanMessage::Nack
+            }
+            // The emulated bus has no data-phase timing: accepted as an adapter would.
+            SlcanMessage::DataBitrate(_) => SlcanMessage::Ack,
             SlcanMessage::Bitrate(rate) => {
                 self.bitrate = rate;
                 SlcanMessage::Ack
