@@ -470,13 +470,13 @@ impl IldInfo {
     /// ignored, missing ones left empty.
     ///
     /// # Errors
-    /// The refused reply's error, or a text naming a missing or unreadable measuring range.
-    pub fn from_reply(reply: &IldReply) -> Result<IldInfo, String> {
+    /// [`IldInfoError`]: the device refused, or the measuring range is missing or unreadable.
+    pub fn from_reply(reply: &IldReply) -> Result<IldInfo, IldInfoError> {
         if let Some(error) = &reply.error {
-            return Err(format!(
-                "GETINFO refused: E{:02} {}",
-                error.code, error.text
-            ));
+            return Err(IldInfoError::Refused {
+                code: error.code,
+                text: error.text.clone(),
+            });
         }
         let value = |key: &str| {
             reply.lines.iter().find_map(|line| {
