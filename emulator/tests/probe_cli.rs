@@ -1,0 +1,115 @@
+//! The `probe` command as a user runs it: JSON shape, and errors that name what is wrong.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn emulator(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_scanhil-emulator"))
+        .args(args)
+        .output()
+        .expect("run scanhil-emulator")
+}
+
+fn fixture(name: &str) -> String {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fixtures/scenes")
+        .join(name)
+        .display()
+        .to_string()
+}
+
+#[test]
+fn probe_json_on_the_plane_reports_spot_truth_and_raw_value() {
+    let scene = fixture("protocol-only.json");
+    let out = emulator(&[
+        "probe",
+        "--scene",
+        &scene,
+        "--d-alpha",
+        "-1.5",
+        "--d-beta",
+        "0.5",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).expect("probe JSON");
+    assert_eq!(report["surface"], "plane");
+    assert_eq!(report["model"], "exact_reflection");
+    assert_eq!(report["true_height_mm"], -120.0);
+    let spot_z = report["spot_mm"][2].as_f64().unwrap();
+    assert!((spot_z + 120.0).abs() < 1e-9);
+    // Negative alpha moves the spot towards +y from the resting -10 mm.
+    assert!(report["spot_mm"][1].as_f64().unwrap() > -10.0);
+    let raw = report["sensor"]["raw"].as_u64().unwrap();
+    let distance = report["sensor"]["distance_mm"].as_f64().unwrap();
+    let truth = report["optics"]["true_distance_mm"].as_f64().unwrap();
+    // Noise-free scene: the raw value is the true distance rounded to one step (1.557 um).
+    assert!((distance - truth).abs() <= 0.78e-3, "{distance} vs {truth}");
+    assert!(raw > 643 && raw < 64_876);
+    let z = report["sensor"]["reconstructed_mm"][2].as_f64().unwrap();
+    assert!((z + 120.0).abs() < 1e-3, "{z}");
+}
+
+#[test]
+fn probe_text_names_a_shaded_position_as_an_error() {
+    let scene = fixture("step-3mm.json");
+    // Sweep until the wall shades the spot; the text then says no_peak, never a distance.
+    let shaded = (0..=60)
+        .map(|k| format!("{:.3}", -1.5 + 0.05 * f64::from(k)))
+        .map(|alpha| {
+            emulator(&[
+                "probe",
+                "--scene",
+                &scene,
+                "--d-alpha",
+                &alpha,
+                "--d-beta",
+                "0",
+            ])
+        })
+        .map(|out| String::from_utf8(out.stdout).unwrap())
+        .find(|text| text.contains("shaded"))
+        .expect("a shaded position on the step");
+    assert!(
+        shaded.contains("error no_peak") && shaded.contains("raw 262076"),
+        "{shaded}"
+    );
+}
+
+#[test]
+fn bad_input_is_refused_with_its_name_and_a_failure_exit() {
+    let missing = emulator(&[
+        "probe",
+        "--scene",
+        "no/such/scene.json",
+        "--d-alpha",
+        "0",
+        "--d-beta",
+        "0",
+    ]);
+    assert!(!missing.status.success());
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("no/such/scene.json"));
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("bad.json");
+    std::fs::write(
+        &scene,
+        r#"{"name": "bad", "parts": ["optics"], "surface": {"kind": "sphere", "radius_mm": -2.0, "center_distance_mm": 100.0}}"#,
+    )
+    .unwrap();
+    let out = emulator(&[
+        "probe",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--d-alpha",
+        "0",
+        "--d-beta",
+        "0",
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("radius_mm") && err.contains("bad"), "{err}");
+}
