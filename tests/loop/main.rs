@@ -1,7 +1,19 @@
 //! Loop tests: `scanhil` and `scanhil-emulator` as separate processes over pty pairs.
+//!
+//! Tolerances are stated where they are used. Nothing here measures time: the real-time test
+//! checks only that timing statistics are present and ordered.
 
 mod util;
 
-// The emulator's watchdog: a controller that goes quiet gets its coil currents zeroed and a
-// LinkTimeout fault frame.
+// The emulator's watchdog: a silent controller gets zero coil currents and a LinkTimeout fault.
 mod emulator_watchdog;
+// A whole scan over ptys: the Duplo stud's height, tracking error, recordings that decode.
+mod scan_result;
+// Lockstep determinism: the same seed twice gives bit-identical recordings and reports.
+mod determinism;
+// The controller's watchdog: a frozen or killed emulator stops the scan with a link timeout.
+mod controller_watchdog;
+// Conformance checks against the emulator, with JUnit XML.
+mod conformance;
+// Real time: statistics present and sane; bus-load refusal before a run.
+mod timing;

@@ -33,6 +33,13 @@ pub struct Args {
     /// Scan duration instead of the scenario's, in seconds.
     #[arg(long)]
     duration_s: Option<f64>,
+    /// Missed periods before a link timeout, instead of the scenario's.
+    #[arg(long)]
+    watchdog_periods: Option<u32>,
+    /// Do not start the emulator: the nodes on --fsm / --sensor are already there (real
+    /// hardware, or an emulator started by hand).
+    #[arg(long)]
+    no_emulator: bool,
     /// The `scanhil-emulator` binary (default: $SCANHIL_EMULATOR, else next to `scanhil`).
     #[arg(long)]
     emulator: Option<PathBuf>,
@@ -63,6 +70,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             TimingArg::Realtime => TimingMode::Realtime,
         }),
         duration_s: args.duration_s,
+        watchdog_periods: args.watchdog_periods,
+        no_emulator: args.no_emulator,
     };
     let end = run_scan(&scenario, &options)
         .with_context(|| format!("scan {}", args.scenario.display()))?;

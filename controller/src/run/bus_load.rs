@@ -82,7 +82,11 @@ pub fn check(
         Ok(None) => {}
         Err(overload) => {
             // The load is linear in the rates: scale the control-rate part down to fit.
-            let fixed = BusLoad::of(&loop_traffic(scenario.timing.mode, 0.0, distance_rate_hz), rates).load;
+            let fixed = BusLoad::of(
+                &loop_traffic(scenario.timing.mode, 0.0, distance_rate_hz),
+                rates,
+            )
+            .load;
             let per_hz = (load.load - fixed) / control_rate_hz;
             let max_rate_hz = ((LoadLimits::DEFAULT.refuse - fixed) / per_hz).max(0.0);
             return Err(LoopDoesNotFit {

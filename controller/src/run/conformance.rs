@@ -219,7 +219,9 @@ fn sensor_checks(sensor: &SensorLink) -> Vec<CheckResult> {
         CheckResult {
             name: "sensor_values_decode",
             node: "sensor",
-            passed: counters.samples > 0 && counters.resync_bytes == 0 && counters.incomplete_cycles == 0,
+            passed: counters.samples > 0
+                && counters.resync_bytes == 0
+                && counters.incomplete_cycles == 0,
             detail: format!(
                 "{} samples, {} bytes skipped, {} incomplete cycles",
                 counters.samples, counters.resync_bytes, counters.incomplete_cycles

@@ -10,7 +10,6 @@ use scanhil_protocol::link::{CanLink, LinkError, VirtualClock};
 use scanhil_protocol::message::{CoilCommand, FaultKind, Message, MessageError, NodeId, NodeState};
 use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
-
 /// Why the loop stopped early.
 #[derive(Debug, thiserror::Error)]
 pub enum LoopError {

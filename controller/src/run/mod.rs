@@ -41,7 +41,6 @@ use std::time::Duration;
 
 use anyhow::{Context, bail};
 use scanhil_emulator::scene::Scene;
-use scanhil_emulator::serve::plant_sensor::measuring_rate_hz;
 use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{CanCapture, CanLink, CaptureClock, PtyPair, VirtualClock};
 
@@ -71,6 +70,10 @@ pub struct ScanOptions {
     pub timing: Option<TimingMode>,
     /// Overrides the scenario's duration, s.
     pub duration_s: Option<f64>,
+    /// Overrides the scenario's watchdog periods.
+    pub watchdog_periods: Option<u32>,
+    /// Do not start the emulator (the nodes are already on the links).
+    pub no_emulator: bool,
 }
 
 /// How the scan ended, for the exit status.
@@ -100,6 +103,12 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
     }
     if let Some(duration_s) = options.duration_s {
         scenario.duration_s = duration_s;
+    }
+    if let Some(periods) = options.watchdog_periods {
+        scenario.timing.watchdog_periods = periods.max(1);
+    }
+    if options.no_emulator {
+        scenario.links.spawn_emulator = false;
     }
     let settings = ControllerSettings::load(&scenario.controller)?;
     let mut controller = settings.build()?;
@@ -267,7 +276,10 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         NodeLink::Pty => {
             spawn = true;
             let pair = PtyPair::open()?;
-            emulator_args.extend(["--fsm".into(), format!("slcan:{}", pair.slave_path().display())]);
+            emulator_args.extend([
+                "--fsm".into(),
+                format!("slcan:{}", pair.slave_path().display()),
+            ]);
             Some(pair)
         }
         NodeLink::Uri(uri) => {
@@ -281,7 +293,10 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         Some(NodeLink::Pty) => {
             spawn = true;
             let pair = PtyPair::open()?;
-            emulator_args.extend(["--sensor".into(), format!("ild:{}", pair.slave_path().display())]);
+            emulator_args.extend([
+                "--sensor".into(),
+                format!("ild:{}", pair.slave_path().display()),
+            ]);
             sensor_pty = Some(pair);
         }
         Some(NodeLink::Uri(uri)) => emulator_args.extend(["--sensor".into(), uri.clone()]),
@@ -334,7 +349,13 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         TimingMode::Lockstep => Duration::from_secs_f64(timing.lockstep_answer_allowance_s),
         TimingMode::Realtime => Duration::from_secs_f64(plan.period_s),
     };
-    let mirror = MirrorLink::new(fsm, clock, plan.period_s, allowance, timing.watchdog_periods);
+    let mirror = MirrorLink::new(
+        fsm,
+        clock,
+        plan.period_s,
+        allowance,
+        timing.watchdog_periods,
+    );
     Ok(OpenLinks {
         mirror,
         sensor,
@@ -362,7 +383,9 @@ pub async fn finish_emulator(
         .find(|value| value["event"] == "summary")
         .unwrap_or(serde_json::Value::Null);
     let exit_status = status.and_then(|s| s.code());
-    Ok(serde_json::json!({ "exit_status": exit_status, "killed": status.is_none(), "summary": summary }))
+    Ok(
+        serde_json::json!({ "exit_status": exit_status, "killed": status.is_none(), "summary": summary }),
+    )
 }
 
 /// The sensor's clock: declared by the emulator's summary when it served the sensor, else
@@ -376,8 +399,15 @@ fn sensor_clock(scene: &Scene, emulator: Option<&serde_json::Value>) -> SensorCl
     }
 }
 
+/// The scene's sensor measuring rate, Hz.
+fn measuring_rate_hz(scene: &Scene) -> f64 {
+    scene.sensor.clone().unwrap_or_default().measuring_rate_hz
+}
+
 /// Reads a child's stdout lines on a thread.
-pub(crate) fn spawn_line_reader(pipe: impl std::io::Read + Send + 'static) -> mpsc::Receiver<String> {
+pub(crate) fn spawn_line_reader(
+    pipe: impl std::io::Read + Send + 'static,
+) -> mpsc::Receiver<String> {
     let (tx, rx) = mpsc::channel();
     std::thread::spawn(move || {
         for line in std::io::BufReader::new(pipe).lines().map_while(Result::ok) {

@@ -94,7 +94,9 @@ impl SensorLink {
     /// The file cannot be created.
     pub fn record_to(&mut self, path: &Path) -> std::io::Result<()> {
         if let SensorLink::Ild(stream) = self {
-            stream.link.set_capture(ByteCapture::new(File::create(path)?));
+            stream
+                .link
+                .set_capture(ByteCapture::new(File::create(path)?));
         }
         Ok(())
     }

@@ -100,8 +100,10 @@ pub async fn run(
                     match output {
                         NodeOutput::Angles(step) => {
                             links.fsm.send(&angle_frame(&step)?).await?;
-                            let samples = super::plant_sensor::samples(&step);
-                            links.sensor.emit(&samples, &mut links.fsm).await?;
+                            links
+                                .sensor
+                                .emit(&step.sensor_samples, &mut links.fsm)
+                                .await?;
                         }
                         NodeOutput::Fault(kind, detail) => {
                             links.fsm.send(&fault_frame(kind, detail, k)?).await?;

@@ -3,7 +3,6 @@
 //!
 //! # Layout
 //! - [`mirror_node`]: the mirror node as a protocol state machine around the plant (no I/O).
-//! - [`plant_sensor`]: the sensor samples of a plant step, and the sensor's rate.
 //! - [`sensor_port`]: where the sensor's samples go (the ILD stream, or CAN Distance frames).
 //! - [`lockstep`]: the controller's Step frame advances the plant one period.
 //! - [`realtime`]: this emulator is the clock master on the wall clock.
@@ -13,7 +12,6 @@
 
 pub mod lockstep;
 pub mod mirror_node;
-pub mod plant_sensor;
 pub mod realtime;
 pub mod sensor_port;
 

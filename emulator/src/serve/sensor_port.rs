@@ -3,20 +3,17 @@
 //! counter, as a sensor configured with `OUTADD_RS422 COUNTER` sends them), or Distance frames
 //! on the mirror's CAN link.
 //!
-//! The sensor's counter starts at 0 with its first sample; the summary line declares the
-//! sensor's clock (measuring rate, and the loop time of counter 0) so the host can place each
-//! distance in time, as it would estimate it for a real sensor.
+//! The summary line declares the sensor's clock (measuring rate, and the loop time its counter
+//! 0 stands for) so the host can place each distance in time; for a real sensor the host
+//! estimates it instead.
 
 use scanhil_protocol::link::ild::IldLink;
 use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{CanLink, LinkUri, PtyPair};
 
-use super::plant_sensor::{self, SensorSample};
 use crate::scene::Scene;
+use crate::sensor::IldSample;
 use scanhil_protocol::message::{Distance, Message, U24_MAX};
-
-/// The 18-bit measured-value counter wraps here.
-pub const COUNTER_MODULUS: u32 = 1 << 18;
 
 /// The sensor's output.
 #[derive(Debug)]
@@ -34,7 +31,7 @@ pub enum SensorPort {
 pub struct SensorClockTrack {
     /// Samples sent.
     pub samples: u64,
-    /// The loop time of the sample with counter 0, s (`None` before the first sample).
+    /// The loop time counter value 0 stands for, s (`None` before the first sample).
     pub counter_zero_s: Option<f64>,
     /// The sensor's measuring rate, Hz.
     pub measuring_rate_hz: f64,
@@ -61,7 +58,7 @@ impl SensorPort {
         let clock = SensorClockTrack {
             samples: 0,
             counter_zero_s: None,
-            measuring_rate_hz: plant_sensor::measuring_rate_hz(scene),
+            measuring_rate_hz: scene.sensor.clone().unwrap_or_default().measuring_rate_hz,
         };
         if uri == "fsm" {
             return Ok((SensorPort::Can(clock), "fsm".into()));
@@ -88,22 +85,20 @@ impl SensorPort {
     ///
     /// # Errors
     /// Link errors.
-    pub async fn emit(
-        &mut self,
-        samples: &[SensorSample],
-        fsm: &mut CanLink,
-    ) -> anyhow::Result<()> {
+    pub async fn emit(&mut self, samples: &[IldSample], fsm: &mut CanLink) -> anyhow::Result<()> {
         match self {
             SensorPort::Off => {}
             SensorPort::Ild(link, clock) => {
                 for sample in samples {
-                    let counter = clock.next(sample.t_s);
-                    link.send_cycle(&[sample.value.raw(), counter]).await?;
+                    clock.count(sample);
+                    link.send_cycle(&[sample.value.raw(), sample.counter])
+                        .await?;
                 }
             }
             SensorPort::Can(clock) => {
                 for sample in samples {
-                    let counter = clock.next(sample.t_s);
+                    clock.count(sample);
+                    let counter = sample.counter;
                     let sensor_time_us =
                         ((sample.t_s * 1e6).round() as u64 & u64::from(U24_MAX)) as u32;
                     let distance = Distance {
@@ -129,13 +124,12 @@ impl SensorPort {
 }
 
 impl SensorClockTrack {
-    /// Counts one sample measured at loop time `t_s` and returns its (wrapped) counter.
-    fn next(&mut self, t_s: f64) -> u32 {
-        let counter = (self.samples % u64::from(COUNTER_MODULUS)) as u32;
+    /// Counts one sample sent; the first one fixes the loop time of counter 0.
+    fn count(&mut self, sample: &IldSample) {
         if self.counter_zero_s.is_none() {
-            self.counter_zero_s = Some(t_s);
+            self.counter_zero_s =
+                Some(sample.t_s - f64::from(sample.counter) / self.measuring_rate_hz);
         }
         self.samples += 1;
-        counter
     }
 }

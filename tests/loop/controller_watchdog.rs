@@ -1,0 +1,138 @@
+//! The controller's side of the watchdog: the emulator freezes (SIGSTOP) or dies (SIGKILL)
+//! mid-run; the scan stops with a link timeout / hang-up, commands zero, exits non-zero, and
+//! what it recorded stays valid.
+
+use std::process::Command;
+use std::time::Duration;
+
+use scanhil_protocol::message::Message;
+
+use crate::util::{ServedEmulator, decode_candump, fixture, report, scanhil};
+
+fn signal(pid: u32, name: &str) {
+    let status = Command::new("kill")
+        .args([&format!("-{name}"), &pid.to_string()])
+        .status()
+        .expect("running kill");
+    assert!(status.success(), "kill -{name} {pid}");
+}
+
+/// Runs a long scan against a hand-started emulator, sends it `signal_name` after a moment,
+/// and returns scanhil's exit code, stderr and output folder.
+fn scan_and_signal(signal_name: &str) -> (Option<i32>, String, tempfile::TempDir) {
+    let emulator = ServedEmulator::start(&[
+        "--scene",
+        &fixture("scenes/loop-fast.json"),
+        "--fsm",
+        "slcan:pty",
+    ]);
+    let out = tempfile::tempdir().expect("a temporary folder");
+    let fsm = format!("slcan:{}", emulator.path("fsm"));
+    let child = Command::new(scanhil())
+        .args([
+            "scan",
+            &fixture("scenarios/test-loop-small.json"),
+            "--fsm",
+            &fsm,
+            "--no-emulator",
+            "--duration-s",
+            "60",
+            "--watchdog-periods",
+            "10",
+            "--out",
+            out.path().to_str().expect("UTF-8 path"),
+        ])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("starting scanhil");
+    // Let the loop run, then stop the emulator.
+    let log = out.path().join("fsm.log");
+    for _ in 0..600 {
+        if std::fs::metadata(&log).is_ok_and(|m| m.len() > 10_000) {
+            break;
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    signal(emulator.child.id(), signal_name);
+    let output = child.wait_with_output().expect("waiting for scanhil");
+    if signal_name == "STOP" {
+        signal(emulator.child.id(), "CONT");
+    }
+    drop(emulator);
+    (
+        output.status.code(),
+        String::from_utf8_lossy(&output.stderr).into_owned(),
+        out,
+    )
+}
+
+fn assert_stopped_cleanly(
+    code: Option<i32>,
+    stderr: &str,
+    out: &tempfile::TempDir,
+    why: &str,
+    zero_command_sent: bool,
+) {
+    assert_eq!(
+        code,
+        Some(3),
+        "exit status 3 for a scan stopped early; stderr:\n{stderr}"
+    );
+    assert!(
+        stderr.contains(why),
+        "stderr names the cause `{why}`:\n{stderr}"
+    );
+    let report = report(out.path());
+    assert_eq!(report["outcome"]["complete"], false);
+    assert!(
+        report["outcome"]["stopped_by"]
+            .as_str()
+            .is_some_and(|s| s.contains(why)),
+        "{}",
+        report["outcome"]
+    );
+    // Everything recorded decodes, and (when the link still takes it) the controller's last
+    // word is a zero command.
+    let recording = decode_candump(&out.path().join("fsm.log"));
+    assert!(
+        recording.angle_seqs.len() > 100,
+        "the loop ran before the stop"
+    );
+    if !zero_command_sent {
+        return;
+    }
+    let text = std::fs::read_to_string(out.path().join("fsm.log")).expect("fsm.log");
+    let last_command = text
+        .lines()
+        .rev()
+        .find(|line| line.contains(" 100#"))
+        .expect("a CoilCommand in the log");
+    let data = last_command.split('#').nth(1).expect("frame data");
+    let bytes = scanhil_protocol::can::parse_hex(data.as_bytes()).expect("hex");
+    let frame = scanhil_protocol::can::CanFrame::new(
+        scanhil_protocol::can::CanId::standard(0x100).expect("11-bit id"),
+        &bytes,
+    )
+    .expect("a frame");
+    let Ok(Message::CoilCommand(command)) = Message::decode(&frame) else {
+        panic!("not a CoilCommand: {last_command}");
+    };
+    assert_eq!(
+        (command.current_a_ua, command.current_b_ua),
+        (0, 0),
+        "{last_command}"
+    );
+}
+
+#[test]
+fn a_frozen_emulator_stops_the_scan_with_a_link_timeout() {
+    let (code, stderr, out) = scan_and_signal("STOP");
+    assert_stopped_cleanly(code, &stderr, &out, "link timeout", true);
+}
+
+#[test]
+fn a_killed_emulator_stops_the_scan_with_a_hang_up() {
+    let (code, stderr, out) = scan_and_signal("KILL");
+    assert_stopped_cleanly(code, &stderr, &out, "hung up", false);
+}

@@ -1,0 +1,76 @@
+//! A whole lockstep scan of the Duplo brick over ptys.
+
+use crate::util::{
+    assert_gapless, assert_success, decode_candump, decode_ild, fixture, number, report,
+    run_scanhil,
+};
+
+/// The stud height of the Duplo scene, mm (the paper's mechanical reference).
+const STUD_HEIGHT_MM: f64 = 4.663;
+/// The measured stud height may differ from the truth by this much, mm: 0.25 s of scan, the
+/// 1.5 um sensor noise, 130 um spot averaging on the stud's rim, and the grid.
+const HEIGHT_TOLERANCE_MM: f64 = 0.1;
+/// The spread of the stud-top heights must stay below the paper's Lissajous figure, mm.
+const HEIGHT_STD_LIMIT_MM: f64 = 0.225;
+
+#[test]
+fn duplo_stud_height_tracking_and_recordings() {
+    let out = tempfile::tempdir().expect("a temporary folder");
+    let out_dir = out.path().to_str().expect("UTF-8 path");
+    let output = run_scanhil(&[
+        "scan",
+        &fixture("scenarios/test-duplo-stud.json"),
+        "--out",
+        out_dir,
+    ]);
+    assert_success(&output, "scanhil scan test-duplo-stud");
+    let report = report(out.path());
+
+    let height = number(&report, "/feature/height_mm");
+    let std = number(&report, "/feature/std_mm");
+    assert!(
+        (height - STUD_HEIGHT_MM).abs() < HEIGHT_TOLERANCE_MM,
+        "stud height {height} mm, truth {STUD_HEIGHT_MM} mm"
+    );
+    assert!(std < HEIGHT_STD_LIMIT_MM, "stud height std {std} mm");
+
+    // PID at 52 Hz: the tracking error is a fraction of the amplitude, never the amplitude.
+    let alpha_rel = number(&report, "/tracking_error/second_half/alpha/rms_relative");
+    let beta_rel = number(&report, "/tracking_error/second_half/beta/rms_relative");
+    assert!(
+        alpha_rel > 0.0 && alpha_rel < 0.25,
+        "alpha rms error / amplitude = {alpha_rel}"
+    );
+    assert!(
+        beta_rel > 0.0 && beta_rel < 0.1,
+        "beta rms error / amplitude = {beta_rel}"
+    );
+
+    let periods = number(&report, "/periods/done") as usize;
+    assert_eq!(periods, 5000);
+    let mirror = decode_candump(&out.path().join("fsm.log"));
+    assert_eq!(mirror.angle_seqs.len(), periods);
+    assert_eq!(mirror.command_seqs.len(), periods);
+    assert_gapless(&mirror.angle_seqs, "AngleReading");
+    assert_gapless(&mirror.command_seqs, "CoilCommand");
+
+    let sensor = decode_ild(&out.path().join("sensor.ild"));
+    assert_eq!(
+        sensor.len() as f64,
+        number(&report, "/samples/sensor_samples")
+    );
+    for pair in sensor.windows(2) {
+        assert_eq!(pair[1].0, (pair[0].0 + 1) % (1 << 18), "ILD counter gap");
+    }
+    // 20 kHz sensor, 20 kHz loop: one sample per period.
+    assert_eq!(sensor.len(), periods);
+    for file in [
+        "points.ply",
+        "height_map.png",
+        "height_map.csv",
+        "tracking.svg",
+        "progressive.svg",
+    ] {
+        assert!(out.path().join(file).is_file(), "{file} written");
+    }
+}
