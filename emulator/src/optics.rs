@@ -514,7 +514,7 @@ mod tests {
                 .z
         };
         // beta 1.3 deg puts the spot 4.0 mm from the stud's axis (x = 0): mid-ring
-        // (3.25 to 4.7 mm); alpha -1.4 deg puts it at y = -16.6, on the top face beyond it.
+        // (3.25 to 4.7 mm); alpha -1.4 deg puts it at y = -2.85 mm, on the top face beyond it.
         let top = z_at(-1.4, 0.0);
         let ring = z_at(0.0, 1.3);
         assert!(

@@ -271,7 +271,7 @@ mod tests {
         let scene = fixture("duplo-2x4-130mm.json");
         assert!(scene.has(Part::SensorNoise) && scene.has(Part::Shading));
         // The stud's ring (beta 1.3 deg: 4.0 mm from its axis at x = 0, mid-ring) and the top
-        // face beyond the stud (alpha -1.4 deg: y = -16.6 mm).
+        // face beyond the stud (alpha -1.4 deg: y = -2.85 mm, the stud spans -14.7 to -5.3).
         let ring = reconstructed_z(&scene, 0.0, 1.3);
         let top = reconstructed_z(&scene, -1.4, 0.0);
         let digit = MeasuringRange::ILD2300_100.mm_per_digit();
