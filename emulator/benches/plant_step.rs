@@ -14,25 +14,39 @@ use scanhil_emulator::plant::Plant;
 use scanhil_emulator::scene::Scene;
 use scanhil_protocol::plant_units::ActuatorPair;
 
-/// Scenes from nothing to the whole drive, each adding one part.
-const LADDER: [(&str, &str); 7] = [
-    ("none", r#"[]"#),
-    (
-        "axes_alpha_only",
-        r#"["axes"], "mirror": {"axes": ["alpha"]}"#,
-    ),
-    ("axes", r#"["axes"]"#),
-    ("+cross_talk", r#"["axes", "cross_talk"]"#),
-    ("+amplifier", r#"["axes", "cross_talk", "amplifier"]"#),
-    (
-        "+power_limit",
-        r#"["axes", "cross_talk", "amplifier", "power_limit"]"#,
-    ),
-    (
-        "+angle_sensor_noise",
-        r#"["axes", "cross_talk", "amplifier", "power_limit", "angle_sensor_noise"]"#,
-    ),
-];
+/// The whole drive, the parts every optical rung adds to.
+const DRIVE: &str = r#""axes", "cross_talk", "amplifier", "power_limit", "angle_sensor_noise""#;
+
+/// Scenes from nothing to the whole plant, each adding one part: (name, parts, extra JSON).
+fn ladder() -> Vec<(&'static str, String)> {
+    let plane = r#", "surface": {"kind": "plane", "distance_mm": 120.0}"#;
+    let optical = |parts: &str| format!("[{DRIVE}, {parts}]{plane}");
+    vec![
+        ("none", "[]".into()),
+        (
+            "axes_alpha_only",
+            r#"["axes"], "mirror": {"axes": ["alpha"]}"#.into(),
+        ),
+        ("axes", r#"["axes"]"#.into()),
+        ("+cross_talk", r#"["axes", "cross_talk"]"#.into()),
+        (
+            "+amplifier",
+            r#"["axes", "cross_talk", "amplifier"]"#.into(),
+        ),
+        (
+            "+power_limit",
+            r#"["axes", "cross_talk", "amplifier", "power_limit"]"#.into(),
+        ),
+        ("+angle_sensor_noise", format!("[{DRIVE}]")),
+        ("+optics_plane", optical(r#""optics""#)),
+        ("+shading", optical(r#""optics", "shading""#)),
+        ("+sensor_20khz", optical(r#""optics", "shading", "sensor""#)),
+        (
+            "+sensor_noise",
+            optical(r#""optics", "shading", "sensor", "sensor_noise""#),
+        ),
+    ]
+}
 
 fn plant_for(parts: &str) -> Plant {
     let json = format!(r#"{{"name": "bench", "parts": {parts}}}"#);
@@ -42,8 +56,8 @@ fn plant_for(parts: &str) -> Plant {
 
 fn parts_ladder(c: &mut Criterion) {
     let mut group = c.benchmark_group("plant_step");
-    for (name, parts) in LADDER {
-        let mut plant = plant_for(parts);
+    for (name, parts) in ladder() {
+        let mut plant = plant_for(&parts);
         let mut k = 0u32;
         group.bench_function(name, |b| {
             b.iter(|| {
