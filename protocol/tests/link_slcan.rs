@@ -393,3 +393,19 @@ async fn the_device_honours_listen_only_and_the_fd_data_bitrate_command() {
     assert_eq!(answers, b"\r\r\x07\r\r\x07");
     assert_eq!(device.stats().slcan.refused_frames, 1);
 }
+
+#[tokio::test]
+async fn a_port_in_use_by_another_link_is_refused_with_the_reason() {
+    let (host, _device) = host_and_device("").await;
+    let path = host.name().trim_start_matches("slcan:").to_owned();
+    let error = SerialLine::open(path.as_ref(), 115_200, host.name()).unwrap_err();
+    let text = error.to_string();
+    assert!(
+        text.contains("another program has this port open"),
+        "{text}"
+    );
+    assert!(
+        text.starts_with(&format!("cannot open {}", host.name())),
+        "{text}"
+    );
+}

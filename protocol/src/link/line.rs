@@ -17,6 +17,9 @@ use tokio::io::unix::AsyncFd;
 use super::error::{LinkError, LinkResult};
 use super::pty::PtyPair;
 
+/// What an open failure on a locked port most likely means.
+const BUSY_HINT: &str = "; another program has this port open";
+
 /// An open byte line, read and written asynchronously.
 #[derive(Debug)]
 pub struct SerialLine {
@@ -61,17 +64,19 @@ impl SerialLine {
         serialport::new(path_text, baud)
             .exclusive(false)
             .open_native()
-            .map_err(|e| open_error(io::Error::other(e.to_string()), ""))?;
+            .map_err(|e| {
+                let hint = if e.kind() == serialport::ErrorKind::NoDevice {
+                    BUSY_HINT
+                } else {
+                    ""
+                };
+                open_error(io::Error::other(e.to_string()), hint)
+            })?;
         let lock = Flock::lock(
             file.try_clone().map_err(|e| open_error(e, ""))?,
             FlockArg::LockExclusiveNonblock,
         )
-        .map_err(|(_, errno)| {
-            open_error(
-                io::Error::from(errno),
-                "; another program has this port open",
-            )
-        })?;
+        .map_err(|(_, errno)| open_error(io::Error::from(errno), BUSY_HINT))?;
         Self::from_file(file, name, Some(lock), None)
     }
 
