@@ -181,7 +181,7 @@ impl OpticalChain {
             })?
             .with_shading(scene.has(Part::Shading));
         let sensor = if scene.has(Part::Sensor) {
-            let config = scene.sensor.clone().unwrap_or_default();
+            let config = scene.sensor.unwrap_or_default();
             let sensor = Ild2300::new(&config, scene.seed, scene.has(Part::SensorNoise)).map_err(
                 |source| PlantError::Sensor {
                     scene: name(),

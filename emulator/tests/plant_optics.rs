@@ -39,7 +39,7 @@ fn protocol_only_scene_has_no_dynamics_and_one_identical_sample_per_period() {
 #[test]
 fn sensor_samples_follow_the_sensor_clock_not_the_control_clock() {
     let mut scene = fixture("plane-120mm.json");
-    let mut sensor = scene.sensor.clone().unwrap_or_default();
+    let mut sensor = scene.sensor.unwrap_or_default();
     sensor.measuring_rate_hz = 49_140.0;
     scene.sensor = Some(sensor);
     let mut plant = Plant::from_scene(&scene).unwrap();
