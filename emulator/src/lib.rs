@@ -1,6 +1,12 @@
 //! The plant emulator: fast steering mirror, coil drive, optics, ILD 2300 sensor, scenes.
 //!
-//! # Layout (being written)
+//! A [`scene::Scene`] file lists the parts in play; [`plant::Plant::from_scene`] builds only
+//! those and [`plant::Plant::step`] advances one control period (pure, seeded, deterministic;
+//! the timing convention is in the [`plant`] module doc).
+//!
+//! # Layout
+//! - [`scene`]: scene files and their parts list.
+//! - [`plant`]: the composed per-period step and its timing convention.
 //! - [`surface`]: what is in front of the sensor, and its ground truth.
 //! - [`optics`]: from mirror angles to the laser spot on the surface, with shading.
 //! - [`sensor`]: the ILD 2300-100 triangulation sensor on its own clock.
@@ -10,8 +16,6 @@
 //! - [`drive_model`]: the composed linear dynamics of the active parts.
 //! - [`integrator`]: exact ZOH, RK4, trapezoid, Euler, and the stability check.
 //! - [`precision`]: the integrators' error against run time (work-precision study).
-//! - [`scene`]: scene files and their parts list.
-//! - [`plant`]: the composed per-period step and its timing convention.
 //! - [`serve`]: the mirror and sensor nodes on real links (lockstep and real time).
 
 pub mod amplifier;
