@@ -2,8 +2,10 @@
 # ci/vm/socketcan-tests.sh [--direct] [TEST-FILTER...]: the SocketCAN link's tests on a real vcan0.
 #
 # Builds scanhil-protocol's test binaries on the host with the cargo features in
-# SCANHIL_VCAN_FEATURES (default "vcan": the tests that need a live vcan0), finds them through
-# cargo's --message-format=json, and runs them:
+# SCANHIL_VCAN_FEATURES (default "vcan": the tests that need a live vcan0) and the cargo target
+# selection in SCANHIL_VCAN_CARGO_TARGETS (default "--test link_socketcan_vcan", where the link's
+# vcan tests live; "--tests" builds every test target), finds them through cargo's
+# --message-format=json, and runs them:
 #   - by default inside the throwaway VM of ci/vcan-vm.sh (vcan0 is created there);
 #   - with --direct right here, on a host whose kernel has CAN and whose vcan0 is up
 #     (sudo modprobe vcan; sudo ip link add dev vcan0 type vcan; sudo ip link set up vcan0).
@@ -16,6 +18,8 @@ set -euo pipefail
 
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd -P)
 readonly FEATURES=${SCANHIL_VCAN_FEATURES:-vcan}
+read -r -a CARGO_TARGETS <<<"${SCANHIL_VCAN_CARGO_TARGETS:---test link_socketcan_vcan}"
+readonly CARGO_TARGETS
 
 # Guest half: runs each binary (up to --) with the filters after it; exits 1 if any failed.
 in_vm() {
@@ -38,8 +42,8 @@ fail() {
 # The test executables cargo builds for scanhil-protocol with $FEATURES, one a line.
 build_test_binaries() {
     command -v python3 >/dev/null 2>&1 || fail "python3 is needed to read cargo's JSON messages"
-    echo "socketcan-tests: cargo test -p scanhil-protocol --features $FEATURES --no-run" >&2
-    cargo test -p scanhil-protocol --features "$FEATURES" --no-run --message-format=json |
+    echo "socketcan-tests: cargo test -p scanhil-protocol --features $FEATURES ${CARGO_TARGETS[*]} --no-run" >&2
+    cargo test -p scanhil-protocol --features "$FEATURES" "${CARGO_TARGETS[@]}" --no-run --message-format=json |
         python3 -c '
 import json, sys
 for line in sys.stdin:
@@ -73,7 +77,7 @@ host() {
     local binaries=()
     mapfile -t binaries < <(build_test_binaries)
     # (The process substitution hides cargo's status: an empty list is the sign of a failed build.)
-    ((${#binaries[@]} > 0)) || fail "cargo built no test binary for scanhil-protocol --features $FEATURES"
+    ((${#binaries[@]} > 0)) || fail "cargo built no test binary for scanhil-protocol --features $FEATURES ${CARGO_TARGETS[*]}"
 
     log=$(mktemp)
     trap 'rm -f "$log"' EXIT
