@@ -399,6 +399,35 @@ mod tests {
         assert!((hit.point_mm.z - field.height_at(hit.point_mm.x, 0.0)).abs() < 1e-9);
     }
 
+    /// The nearest hit over every cell in and around the grid, without the grid walk.
+    fn brute_force(field: &HeightField, origin: &Point3<f64>, dir: &Vector3<f64>) -> Option<f64> {
+        let (c, r) = (field.cols as i64, field.rows as i64);
+        (-3..c + 3)
+            .flat_map(|i| (-3..r + 3).map(move |j| (i, j)))
+            .filter_map(|(i, j)| field.intersect_cell(i, j, origin, dir, f64::INFINITY))
+            .map(|h| h.t_mm)
+            .min_by(f64::total_cmp)
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn grid_walk_finds_the_nearest_triangle(
+            heights in proptest::collection::vec(0.0f64..3.0, 36),
+            x in -2.0f64..2.0, y in -2.0f64..2.0, dx in -0.6f64..0.6, dy in -0.6f64..0.6,
+        ) {
+            let field = HeightField::new(HeightGrid { cols: 6, rows: 6, heights_mm: heights }, 0.5, 0.0, 0.0, -10.0);
+            let origin = Point3::new(x, y, 0.0);
+            let dir = Vector3::new(dx, dy, -1.0).normalize();
+            // Only rays whose hit lies over the grid's cells are comparable with the brute force.
+            let walked = field.intersect(&origin, &dir, f64::INFINITY).map(|h| h.t_mm);
+            let brute = brute_force(&field, &origin, &dir);
+            if let Some(b) = brute {
+                let w = walked.expect("grid walk missed a hit");
+                proptest::prop_assert!((w - b).abs() < 1e-9, "walk {} vs brute {}", w, b);
+            }
+        }
+    }
+
     #[test]
     fn csv_errors_name_line_and_column() {
         let dir = tempfile::tempdir().unwrap();
