@@ -13,6 +13,9 @@ use scanhil_controller::settings::ControllerSettings;
 use scanhil_controller::trajectory::SensingAxis;
 use scanhil_report::{Axis, Chart, Series, draw_charts};
 
+/// The model's response at a frequency (Hz), drawn beside the measurement.
+type ModelResponse = Box<dyn Fn(f64) -> Complex<f64>>;
+
 /// Which plant to excite.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum PlantChoice {
@@ -53,11 +56,11 @@ pub struct Args {
     /// Number of log-spaced frequencies.
     #[arg(long, default_value_t = 40)]
     points: usize,
-    /// Excitation amplitude: input units (A) open loop, mrad of reference closed loop.
+    /// Excitation amplitude: input units (A) open loop (default 0.02), mrad of reference closed loop (default 0.1; keep the coil command below its limit at high frequency).
     #[arg(long)]
     amplitude: Option<f64>,
-    /// Settling time before each measurement, s.
-    #[arg(long, default_value_t = 1.5)]
+    /// Settling time before each measurement, s (the plant's decay time is 0.22 s).
+    #[arg(long, default_value_t = 2.5)]
     settle_s: f64,
     /// Whole periods per averaging block.
     #[arg(long, default_value_t = 4)]
@@ -114,26 +117,25 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             args.seed,
         )),
     };
-    let (mut target, amplitude, model): (Target, f64, Box<dyn Fn(f64) -> Complex<f64>>) =
-        match args.mode {
-            Mode::OpenLoop => (
-                Target::OpenLoop,
-                args.amplitude.unwrap_or(0.02),
-                Box::new(move |f| plant_model.discrete(period_s).response(f, period_s)),
-            ),
-            Mode::ClosedLoop => {
-                let settings = settings
-                    .as_ref()
-                    .context("--mode closed-loop needs --controller FILE")?;
-                let controller = settings.build()?;
-                let nominal = settings.nominal_loop(controller.axis());
-                (
-                    Target::ClosedLoop(Box::new(controller)),
-                    args.amplitude.unwrap_or(1.0) * 1e-3,
-                    Box::new(move |f| nominal.complementary(f)),
-                )
-            }
-        };
+    let (mut target, amplitude, model): (Target, f64, ModelResponse) = match args.mode {
+        Mode::OpenLoop => (
+            Target::OpenLoop,
+            args.amplitude.unwrap_or(0.02),
+            Box::new(move |f| plant_model.discrete(period_s).response(f, period_s)),
+        ),
+        Mode::ClosedLoop => {
+            let settings = settings
+                .as_ref()
+                .context("--mode closed-loop needs --controller FILE")?;
+            let controller = settings.build()?;
+            let nominal = settings.nominal_loop(controller.axis());
+            (
+                Target::ClosedLoop(Box::new(controller)),
+                args.amplitude.unwrap_or(0.1) * 1e-3,
+                Box::new(move |f| nominal.complementary(f)),
+            )
+        }
+    };
     let plan = SteppedSine {
         axis: args.axis,
         frequencies_hz: SteppedSine::log_frequencies(args.from_hz, args.to_hz, args.points),

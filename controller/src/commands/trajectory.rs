@@ -13,13 +13,13 @@ use scanhil_report::{Axis, Chart, Series, draw_charts};
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// A Lissajous scan: ALPHA_HZ,BETA_HZ (the paper's is 52,27).
-    #[arg(long, value_delimiter = ',', num_args = 2, conflicts_with_all = ["raster", "file"])]
+    #[arg(long, value_delimiter = ',', conflicts_with_all = ["raster", "file"])]
     lissajous: Option<Vec<f64>>,
     /// Phase of beta against alpha for --lissajous, degrees.
     #[arg(long, default_value_t = 0.0)]
     phase_deg: f64,
     /// A raster scan: SLOW_HZ,FAST_HZ (the paper's is 2,34).
-    #[arg(long, value_delimiter = ',', num_args = 2, conflicts_with = "file")]
+    #[arg(long, value_delimiter = ',', conflicts_with = "file")]
     raster: Option<Vec<f64>>,
     /// The axis carrying the slow triangle for --raster.
     #[arg(long, value_enum, default_value = "beta")]
@@ -28,7 +28,7 @@ pub struct Args {
     #[arg(long)]
     file: Option<PathBuf>,
     /// Scan range X_MM,Y_MM (x along beta, y along alpha) for spacings in mm, e.g. 11.5,18.5.
-    #[arg(long, value_delimiter = ',', num_args = 2)]
+    #[arg(long, value_delimiter = ',')]
     range_mm: Option<Vec<f64>>,
     /// Plot the path of one frame (or 1 s) as beta (x) against alpha (y) in degrees.
     #[arg(long)]
@@ -37,6 +37,18 @@ pub struct Args {
 
 /// Runs `scanhil trajectory`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    for (flag, values) in [
+        ("--lissajous", &args.lissajous),
+        ("--raster", &args.raster),
+        ("--range-mm", &args.range_mm),
+    ] {
+        if let Some(v) = values {
+            anyhow::ensure!(
+                v.len() == 2,
+                "{flag} takes two comma-separated numbers, got {v:?}"
+            );
+        }
+    }
     let full = FULL_RANGE_DEG.to_radians();
     let trajectory = match (&args.lissajous, &args.raster, &args.file) {
         (Some(f), _, _) => Trajectory::Lissajous {

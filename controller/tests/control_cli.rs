@@ -1,0 +1,121 @@
+//! `scanhil analyze`, `identify` and `trajectory` as a user runs them.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fixtures/controllers")
+        .join(name)
+}
+
+fn scanhil(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_scanhil"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn analyze_reports_json_and_plots_the_bode_diagram() {
+    let dir = tempfile::tempdir().unwrap();
+    let plot = dir.path().join("t.svg");
+    let out = scanhil(&[
+        "analyze",
+        "--controller",
+        fixture("dual-tone-exact-tones.json").to_str().unwrap(),
+        "--json",
+        "--at",
+        "27,52",
+        "--plot",
+        plot.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["nominal_loop"]["stable"], true);
+    assert_eq!(json["discrete"]["sections"].as_array().unwrap().len(), 4);
+    let at = json["nominal_loop"]["at"].as_array().unwrap();
+    assert_eq!(at.len(), 2);
+    assert!(at[0]["magnitude_db"].as_f64().unwrap().abs() < 0.2);
+    let svg = std::fs::read_to_string(&plot).unwrap();
+    assert!(svg.contains("magnitude") && svg.contains("phase"));
+}
+
+#[test]
+fn analyze_of_an_unstable_choice_says_so_and_fails() {
+    let out = scanhil(&[
+        "analyze",
+        "--controller",
+        fixture("dual-tone-forward-euler.json").to_str().unwrap(),
+    ]);
+    assert_eq!(out.status.code(), Some(3));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("refused") && text.contains("-1.035"),
+        "{text}"
+    );
+}
+
+#[test]
+fn analyze_names_a_missing_file() {
+    let out = scanhil(&["analyze", "--controller", "no/such.json"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no/such.json"));
+}
+
+#[test]
+fn trajectory_prints_the_derived_figures() {
+    let out = scanhil(&[
+        "trajectory",
+        "--lissajous",
+        "52,27",
+        "--range-mm",
+        "11.5,18.5",
+    ]);
+    assert!(out.status.success());
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let mm = json["figures"]["resolution_mm"].as_f64().unwrap();
+    assert!((mm - 1.07).abs() < 0.01, "{mm}");
+    let out = scanhil(&["trajectory", "--raster", "2"]);
+    assert!(!out.status.success());
+}
+
+#[test]
+fn identify_writes_json_with_coherence() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_file = dir.path().join("fr.json");
+    let out = scanhil(&[
+        "identify",
+        "--plant",
+        "nominal",
+        "--from-hz",
+        "10",
+        "--to-hz",
+        "100",
+        "--points",
+        "3",
+        "--out",
+        out_file.to_str().unwrap(),
+        "--plot",
+        dir.path().join("fr.png").to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&out_file).unwrap()).unwrap();
+    let points = json["points"].as_array().unwrap();
+    assert_eq!(points.len(), 3);
+    assert!(
+        points
+            .iter()
+            .all(|p| p["measured"]["coherence"].as_f64().unwrap() > 0.999)
+    );
+    assert!(dir.path().join("fr.png").exists());
+}
