@@ -582,11 +582,34 @@ mod tests {
         assert!(err.contains("max_viewing_deg"), "{err}");
     }
 
+    /// One surface of each kind, the height map from the dimple fixture.
+    const SURFACES: [&str; 6] = [
+        r#"{"kind": "plane", "distance_mm": 130.0}"#,
+        r#"{"kind": "tilted_plane", "distance_mm": 130.0, "slope_x_deg": 20.0, "slope_y_deg": -10.0}"#,
+        r#"{"kind": "step", "distance_mm": 130.0, "height_mm": 3.0, "axis": "y"}"#,
+        r#"{"kind": "sphere", "radius_mm": 8.0, "center_distance_mm": 135.0}"#,
+        r#"{"kind": "height_map", "file": "../fixtures/surfaces/dimple.csv", "distance_mm": 130.0, "pixel_mm": 0.1}"#,
+        r#"{"kind": "duplo_2x4"}"#,
+    ];
+
     proptest! {
         #[test]
-        fn observe_never_panics_and_stays_finite(alpha in -1e6f64..1e6, beta in -1e6f64..1e6, small in any::<bool>()) {
+        fn observe_never_panics_and_stays_finite(
+            alpha in -1e6f64..1e6,
+            beta in -1e6f64..1e6,
+            small in any::<bool>(),
+            surface in 0..SURFACES.len(),
+        ) {
             let model = if small { GeometryModel::SmallAngle } else { GeometryModel::ExactReflection };
-            let o = optics(r#"{"kind": "duplo_2x4"}"#, OpticsConfig { model, spot: Some(SpotConfig { diameter_mm: 0.13, samples: 3 }), ..OpticsConfig::default() });
+            let spot = Some(SpotConfig { diameter_mm: 0.13, samples: 3 });
+            let surface_config: SurfaceConfig = serde_json::from_str(SURFACES[surface]).unwrap();
+            let base = Path::new(env!("CARGO_MANIFEST_DIR"));
+            let o = Optics::new(
+                &OpticsConfig { model, spot, ..OpticsConfig::default() },
+                Surface::from_config(&surface_config, base).unwrap(),
+            )
+            .unwrap();
+            // Any finite angle, and the same scaled into the mirror's range.
             for scale in [1.0, 1e-6] {
                 let r = o.observe(SensingPair { alpha: alpha * scale, beta: beta * scale });
                 if let OpticalOutcome::Distance { z_meas_mm } = r.outcome {
