@@ -5,10 +5,10 @@
 
 use std::path::Path;
 
-use scanhil_emulator::optics::{OpticalOutcome, Optics, OpticsConfig};
+use scanhil_emulator::optics::{OpticalOutcome, Optics};
 use scanhil_emulator::scene::{Part, Scene};
-use scanhil_emulator::sensor::{Ild2300, SensorConfig};
-use scanhil_emulator::surface::{Surface, SurfaceConfig};
+use scanhil_emulator::sensor::Ild2300;
+use scanhil_emulator::surface::Surface;
 use scanhil_protocol::ild::IldValue;
 use scanhil_protocol::plant_units::SensingPair;
 
@@ -32,13 +32,6 @@ impl ScanScene for Optics {
     fn true_z_mm(&self, x_mm: f64, y_mm: f64) -> Option<f64> {
         self.surface().height_at(x_mm, y_mm)
     }
-}
-
-/// A scene section as the emulator's typed configuration (the scene may hold it as JSON).
-fn typed<T: serde::de::DeserializeOwned>(
-    section: &impl serde::Serialize,
-) -> Result<T, serde_json::Error> {
-    serde_json::from_value(serde_json::to_value(section)?)
 }
 
 /// The optical and sensing half of a scene file.
@@ -88,35 +81,22 @@ impl EmulatedScanner {
                 reason: e.to_string(),
             }
         };
-        let surface_config: SurfaceConfig = scene
+        let surface_config = scene
             .surface
             .as_ref()
-            .map(typed)
-            .transpose()
-            .map_err(|e| part("surface")(&e))?
             .ok_or_else(|| EmulatedError::NoSurface { path: name.clone() })?;
         let base_dir = scene.base_dir().unwrap_or(Path::new("."));
         let surface =
-            Surface::from_config(&surface_config, base_dir).map_err(|e| part("surface")(&e))?;
-        let optics_config: OpticsConfig = scene
-            .optics
-            .as_ref()
-            .map(typed)
-            .transpose()
-            .map_err(|e| part("optics")(&e))?
-            .unwrap_or_default();
-        let optics = Optics::new(&optics_config, surface)
+            Surface::from_config(surface_config, base_dir).map_err(|e| part("surface")(&e))?;
+        let optics = Optics::new(&scene.optics.clone().unwrap_or_default(), surface)
             .map_err(|e| part("optics")(&e))?
             .with_shading(scene.has(Part::Shading));
-        let sensor_config: SensorConfig = scene
-            .sensor
-            .as_ref()
-            .map(typed)
-            .transpose()
-            .map_err(|e| part("sensor")(&e))?
-            .unwrap_or_default();
-        let sensor = Ild2300::new(&sensor_config, scene.seed, scene.has(Part::SensorNoise))
-            .map_err(|e| part("sensor")(&e))?;
+        let sensor = Ild2300::new(
+            &scene.sensor.unwrap_or_default(),
+            scene.seed,
+            scene.has(Part::SensorNoise),
+        )
+        .map_err(|e| part("sensor")(&e))?;
         Ok(EmulatedScanner { optics, sensor })
     }
 
