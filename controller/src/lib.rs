@@ -1,4 +1,28 @@
-//! The scanhil host.
+//! The scanhil host: trajectories, PID and dual-tone control, controller analysis,
+//! identification, the loop over real links, reconstruction and imaging.
+//!
+//! # Layout
+//! Control (all f64, pure per-period steps, no clock):
+//! - [`trajectory`]: Lissajous, raster, step, sine and swept-sine references (rad) and the
+//!   frame rate and line spacing derived from their definition.
+//! - [`continuous`]: continuous transfer functions as factors, grouped into second-order
+//!   sections.
+//! - [`discretise`]: per-section discretisation (Tustin, prewarped Tustin, zero-order hold,
+//!   matched pole-zero, forward and backward Euler).
+//! - [`sos`]: discrete sections, their cascade (direct form II transposed) and state space.
+//! - [`pid`]: Table II PID (series and parallel readings) with limit and anti-windup.
+//! - [`dual_tone`]: eq. 5 with Table I, optionally with the tones moved onto the drive
+//!   frequencies.
+//! - [`plant_model`]: eq. 4, ZOH-discretised, with the one-period command delay.
+//! - [`loop_analysis`]: the nominal closed loop: poles, margins, bandwidth, T.
+//! - [`settings`]: controller files, discretised and checked for stability on load.
+//! - [`scan_controller`]: the per-period controller the loop calls (rad in, coil A out).
+//! - [`link`]: the [`link::PlantLink`] trait and the in-process nominal plant.
+//! - [`identify`]: stepped-sine frequency response with coherence.
+//! - [`accuracy`]: tone placement and tracking error per discretisation method.
+//!
+//! The loop and imaging: [`run`] (scans over real links), [`imaging`] (reconstruction,
+//! gridding, RANSAC, progressive imaging).
 
 pub mod accuracy;
 pub mod continuous;
