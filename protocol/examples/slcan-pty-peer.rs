@@ -6,9 +6,9 @@
 //! `O`, `C`, `Sn` and empty lines, BEL for anything else). After the client's `O` the peer
 //! sends every frame of FRAMES_FILE (candump `-L` lines) with the project's SLCAN encoder.
 //! Every frame the client sends is decoded with the project's SLCAN decoder and printed as
-//! `RECV <candump line>`; after EXPECT frames it prints `DONE` and exits 0 at the client's
-//! next `C` (close). Malformed lines are printed as `MALFORMED <error>` (exit 1 at the end);
-//! not done within 20 s: exit 1.
+//! `RECV <candump line>`; after EXPECT frames it prints `DONE`, and exits 0 once the client
+//! has hung up the pty. Malformed lines are printed as `MALFORMED
+//! <error>` (exit 1 at the end); not done within 20 s: exit 1.
 
 use std::io::{Read, Write};
 use std::process::ExitCode;
@@ -45,12 +45,14 @@ fn run() -> Result<bool, String> {
         .map(|entry| entry.map(|e| e.frame).map_err(|e| e.to_string()))
         .collect::<Result<Vec<_>, _>>()?;
 
-    // The slave end stays open here so that reads on the master never see a hang-up.
+    // The peer holds the slave end until the client has opened it (reads on a master without
+    // any slave fail), then lets go, so that the client's hang-up ends the exchange.
     let (mut master, slave) = TTYPort::pair().map_err(|e| format!("pty pair: {e}"))?;
     master
         .set_timeout(Duration::from_millis(50))
         .map_err(|e| e.to_string())?;
     let path = slave.name().ok_or("the pty has no name")?;
+    let mut slave = Some(slave);
     println!("PTY {path}");
     std::io::stdout().flush().map_err(|e| e.to_string())?;
 
@@ -59,18 +61,25 @@ fn run() -> Result<bool, String> {
     let mut received = 0;
     let mut malformed = 0;
     let mut buf = [0u8; 256];
-    let mut closed = false;
-    while !closed {
+    let mut done = false;
+    loop {
         if started.elapsed() > DEADLINE {
             return Err(format!(
                 "timed out after {DEADLINE:?} with {received} of {expect} frames"
             ));
         }
         let n = match master.read(&mut buf) {
+            Ok(0) if done => break,
             Ok(n) => n,
             Err(e) if e.kind() == std::io::ErrorKind::TimedOut => continue,
+            // The client hung up after the exchange (its final `C` may be lost with the
+            // hang-up: serialport reports the hang-up before reading what is pending).
+            Err(_) if done => break,
             Err(e) => return Err(format!("read: {e}")),
         };
+        if n > 0 {
+            drop(slave.take());
+        }
         for event in decoder.push(&buf[..n]) {
             let reply = match event {
                 Ok(SlcanMessage::Frame(frame)) => {
@@ -83,6 +92,7 @@ fn run() -> Result<bool, String> {
                     println!("RECV {entry}");
                     if received == expect {
                         println!("DONE");
+                        done = true;
                     }
                     continue;
                 }
@@ -91,10 +101,7 @@ fn run() -> Result<bool, String> {
                     out.extend(frames.iter().map(slcan::encode_frame));
                     out
                 }
-                Ok(SlcanMessage::Close) => {
-                    closed = received >= expect;
-                    SlcanMessage::Ack.encode()
-                }
+                Ok(SlcanMessage::Close) => SlcanMessage::Ack.encode(),
                 Ok(SlcanMessage::Bitrate(_) | SlcanMessage::Ack) => SlcanMessage::Ack.encode(),
                 Ok(_) => SlcanMessage::Nack.encode(),
                 Err(err) => {
