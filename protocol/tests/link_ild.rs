@@ -276,3 +276,36 @@ async fn the_raw_capture_holds_exactly_the_bytes_that_crossed() {
     assert!(received.ends_with(b"->"));
     assert_eq!(sent.0.lock().unwrap().as_slice(), b"GETINFO\r");
 }
+
+/// The controller's default set-up: host on the master, the emulated sensor opens the slave
+/// path by URI.
+#[tokio::test]
+async fn controller_flow_host_on_the_master_sensor_on_the_slave_path() {
+    let pair = PtyPair::open().unwrap();
+    let sensor_uri: LinkUri = format!("ild:{}@691200", pair.slave_path().display())
+        .parse()
+        .unwrap();
+    let mut host = IldLink::open_pty(pair, Role::Host).unwrap();
+    let sensor = tokio::spawn(async move {
+        let mut sensor = IldLink::open(&sensor_uri, Role::Device).unwrap();
+        assert_eq!(answer_one(&mut sensor, false).await, IldCommand::GetInfo);
+        for raw in [100, 200, 300] {
+            sensor.send_cycle(&[raw]).await.unwrap();
+        }
+        let error = sensor.recv_command().await.unwrap_err();
+        assert!(matches!(error, LinkError::HangUp { .. }), "{error}");
+    });
+    let reply = host
+        .command(&IldCommand::GetInfo, REPLY_WAIT)
+        .await
+        .unwrap();
+    assert_eq!(reply.lines[1], "Measuring range: 100.00mm");
+    for raw in [100, 200, 300] {
+        assert_eq!(
+            host.recv_cycle().await.unwrap().distance,
+            IldValue::Distance(raw)
+        );
+    }
+    drop(host);
+    sensor.await.unwrap();
+}

@@ -409,3 +409,39 @@ async fn a_port_in_use_by_another_link_is_refused_with_the_reason() {
         "{text}"
     );
 }
+
+/// The controller's default set-up: it creates the pair, keeps the master as host and starts
+/// the emulator, which opens the slave path by URI as the device end.
+#[tokio::test]
+async fn controller_flow_host_on_the_master_device_on_the_slave_path() {
+    let pair = PtyPair::open().unwrap();
+    let device_uri: LinkUri = format!("slcan:{}", pair.slave_path().display())
+        .parse()
+        .unwrap();
+    let emulator = async move {
+        let mut device = CanLink::open(&device_uri, Role::Device).await.unwrap();
+        // Serve the host's open, then echo one frame back with id + 0x10.
+        let frame = device.recv().await.unwrap();
+        assert!(device.channel_open());
+        assert_eq!(device.slcan_bitrate(), Some(1_000_000));
+        let id = CanId::standard(frame.id().as_raw() as u16 + 0x10).unwrap();
+        device
+            .send(&CanFrame::new(id, frame.data()).unwrap())
+            .await
+            .unwrap();
+        // The host going away is a hang-up here too.
+        let error = device.recv().await.unwrap_err();
+        assert!(matches!(error, LinkError::HangUp { .. }), "{error}");
+    };
+    let controller = async move {
+        let mut host = CanLink::open_pty(pair, Some(1_000_000), Role::Host)
+            .await
+            .unwrap();
+        host.send(&std_frame(0x100, &[7, 7])).await.unwrap();
+        assert_eq!(host.recv().await.unwrap(), std_frame(0x110, &[7, 7]));
+        assert_eq!(host.bus_bitrate(), Some(1_000_000));
+    };
+    let emulator = tokio::spawn(emulator);
+    controller.await;
+    emulator.await.unwrap();
+}
