@@ -37,36 +37,36 @@ use crate::surface::{Surface, SurfaceError};
 #[derive(Debug, thiserror::Error)]
 pub enum PlantError {
     /// The scene's integrator and step are unstable on its plant.
-    #[error("scene {scene}: {source}")]
+    #[error("scene {scene}: {cause}")]
     Unstable {
         /// The scene's name.
         scene: String,
-        /// The stability check's finding.
-        source: StabilityError,
+        /// The stability check's finding (in the message; not chained as a source).
+        cause: StabilityError,
     },
     /// The scene's surface could not be built (e.g. a height map file is unreadable).
-    #[error("scene {scene}: surface: {source}")]
+    #[error("scene {scene}: surface: {cause}")]
     Surface {
         /// The scene's name.
         scene: String,
         /// What went wrong.
-        source: SurfaceError,
+        cause: SurfaceError,
     },
     /// The scene's optics section is unusable.
-    #[error("scene {scene}: optics: {source}")]
+    #[error("scene {scene}: optics: {cause}")]
     Optics {
         /// The scene's name.
         scene: String,
         /// What went wrong.
-        source: OpticsError,
+        cause: OpticsError,
     },
     /// The scene's sensor section is unusable.
-    #[error("scene {scene}: sensor: {source}")]
+    #[error("scene {scene}: sensor: {cause}")]
     Sensor {
         /// The scene's name.
         scene: String,
         /// What went wrong.
-        source: SensorError,
+        cause: SensorError,
     },
     /// A coil current command was NaN or infinite; the plant state is unchanged.
     #[error("period {period_index}: coil current command is not finite (a = {a_a} A, b = {b_a} A)")]
@@ -168,24 +168,24 @@ impl OpticalChain {
         };
         let name = || scene.name.clone();
         let base_dir = scene.base_dir().unwrap_or(std::path::Path::new("."));
-        let surface = Surface::from_config(surface_config, base_dir).map_err(|source| {
+        let surface = Surface::from_config(surface_config, base_dir).map_err(|cause| {
             PlantError::Surface {
                 scene: name(),
-                source,
+                cause,
             }
         })?;
         let optics = Optics::new(&scene.optics.clone().unwrap_or_default(), surface)
-            .map_err(|source| PlantError::Optics {
+            .map_err(|cause| PlantError::Optics {
                 scene: name(),
-                source,
+                cause,
             })?
             .with_shading(scene.has(Part::Shading));
         let sensor = if scene.has(Part::Sensor) {
             let config = scene.sensor.unwrap_or_default();
             let sensor = Ild2300::new(&config, scene.seed, scene.has(Part::SensorNoise)).map_err(
-                |source| PlantError::Sensor {
+                |cause| PlantError::Sensor {
                     scene: name(),
-                    source,
+                    cause,
                 },
             )?;
             Some(sensor)
@@ -251,10 +251,10 @@ impl Plant {
         let cross_talk = scene.has(Part::CrossTalk).then_some(&scene.cross_talk);
         let model = DriveModel::new(mirror, amplifier.as_ref(), cross_talk);
         let stepper = if model.states() > 0 {
-            let stepper = Stepper::new(&model, period_s, scene.integrator).map_err(|source| {
+            let stepper = Stepper::new(&model, period_s, scene.integrator).map_err(|cause| {
                 PlantError::Unstable {
                     scene: scene.name.clone(),
-                    source,
+                    cause,
                 }
             })?;
             Some(stepper)

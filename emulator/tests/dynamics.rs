@@ -93,7 +93,7 @@ fn undamped_mirror_runs_exact_but_euler_is_refused_naming_method_step_and_eigenv
         substeps: 1,
     };
     let err = Plant::from_scene(&euler).unwrap_err();
-    let PlantError::Unstable { source, .. } = &err else {
+    let PlantError::Unstable { cause: source, .. } = &err else {
         panic!("{err}")
     };
     assert_eq!(source.method, Method::ExplicitEuler);
@@ -125,7 +125,7 @@ fn stiff_amplifier_refuses_rk4_at_one_substep_and_suggests_two() {
     let s =
         scene(r#"{"name": "t", "parts": ["axes", "amplifier"], "integrator": {"method": "rk4"}}"#);
     let err = Plant::from_scene(&s).unwrap_err();
-    let PlantError::Unstable { source, .. } = err else {
+    let PlantError::Unstable { cause: source, .. } = err else {
         panic!()
     };
     // R(z) of RK4 at z = -2 pi 10 kHz * 50 us = -3.1416.
