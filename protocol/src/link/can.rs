@@ -293,6 +293,5 @@ impl CanLink {
 fn slcan_bitrate(bitrate: Option<u32>) -> SlcanBitrate {
     bitrate
         .and_then(SlcanBitrate::from_bits_per_s)
-        .or_else(|| SlcanBitrate::from_bits_per_s(SLCAN_DEFAULT_BITRATE))
-        .unwrap_or(SlcanBitrate::Mbit1)
+        .unwrap_or(SLCAN_DEFAULT_BITRATE)
 }

@@ -14,7 +14,7 @@ use crate::ild::stream::FACTORY_BAUD as ILD_DEFAULT_BAUD;
 use crate::slcan::SlcanBitrate;
 
 /// The CAN bit rate an SLCAN adapter is set to when the URI names none (python-can's default).
-pub const SLCAN_DEFAULT_BITRATE: u32 = 1_000_000;
+pub const SLCAN_DEFAULT_BITRATE: SlcanBitrate = SlcanBitrate::Mbit1;
 /// The serial baud rate used on an SLCAN line. USB adapters (CANable, ttyACM) and ptys ignore
 /// it; a UART adapter needing another rate is reconfigured with `stty` before use.
 pub const SLCAN_SERIAL_BAUD: u32 = 115_200;
