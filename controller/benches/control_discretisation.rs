@@ -1,6 +1,6 @@
 //! Accuracy against cost of the discretisation methods for the dual-tone controller (and the
 //! two PID readings): tone placement error, tracking error of a simulated Lissajous 52/27 Hz
-//! full-range scan with the nominal plant, and the run time of one control period
+//! half-range scan with the nominal plant, and the run time of one control period
 //! (`ScanController::step`, both axes). Writes JSON to stdout and to
 //! `target/control_discretisation.json`.
 //!
@@ -38,12 +38,12 @@ fn ns_per_period(settings: &ControllerSettings) -> Option<f64> {
 
 fn main() {
     let fixtures = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/controllers");
-    let full = FULL_RANGE_DEG.to_radians();
+    let half = 0.5 * FULL_RANGE_DEG.to_radians();
     let lissajous = Trajectory::Lissajous {
         alpha_hz: 52.0,
         beta_hz: 27.0,
-        alpha_amplitude_rad: full,
-        beta_amplitude_rad: full,
+        alpha_amplitude_rad: half,
+        beta_amplitude_rad: half,
         relative_phase_rad: 0.0,
     };
     let mut rows = Vec::new();

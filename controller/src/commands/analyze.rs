@@ -29,7 +29,8 @@ pub struct Args {
     #[arg(long)]
     plot: Option<PathBuf>,
     /// Also compare every discretisation method: tone placement and the tracking error of a
-    /// simulated Lissajous 52/27 Hz scan (full range) with the nominal plant.
+    /// simulated Lissajous 52/27 Hz scan (half range, so the coils do not saturate) with the
+    /// nominal plant.
     #[arg(long)]
     compare_methods: bool,
     /// Simulated time for --compare-methods, s (the error is taken over the last second).
@@ -67,8 +68,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         let lissajous = Trajectory::Lissajous {
             alpha_hz: 52.0,
             beta_hz: 27.0,
-            alpha_amplitude_rad: scanhil_protocol::plant_units::FULL_RANGE_DEG.to_radians(),
-            beta_amplitude_rad: scanhil_protocol::plant_units::FULL_RANGE_DEG.to_radians(),
+            alpha_amplitude_rad: 0.5 * scanhil_protocol::plant_units::FULL_RANGE_DEG.to_radians(),
+            beta_amplitude_rad: 0.5 * scanhil_protocol::plant_units::FULL_RANGE_DEG.to_radians(),
             relative_phase_rad: 0.0,
         };
         compare_methods(
@@ -101,11 +102,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     }
     if let Some(path) = &args.plot {
         let bode = nominal.bode();
-        let title = format!(
-            "T of {} (nominal plant, {})",
-            settings.name,
-            settings.discretisation.name()
-        );
+        let title = format!("T, {}", settings.discretisation.name());
         let magnitude: Vec<(f64, f64)> = bode.iter().map(|&(f, m, _)| (f, m)).collect();
         let phase: Vec<(f64, f64)> = bode.iter().map(|&(f, _, p)| (f, p)).collect();
         let panel = |title: String, y_label: &str, points| Chart {
@@ -123,7 +120,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         draw_charts(
             path,
             &[
-                panel(format!("{title}: magnitude"), "|T| [dB]", magnitude),
+                panel(
+                    format!("{title}: magnitude (nominal plant)"),
+                    "|T| [dB]",
+                    magnitude,
+                ),
                 panel(format!("{title}: phase"), "arg T [deg]", phase),
             ],
         )
@@ -233,7 +234,9 @@ fn print_text(
     );
     println!("verdict: {}", json["verdict"].as_str().unwrap_or(""));
     if let Some(rows) = json["method_comparison"].as_array() {
-        println!("method comparison (Lissajous 52/27 Hz, full range, nominal plant):");
+        println!(
+            "method comparison (Lissajous 52/27 Hz, half range, nominal plant, error over the last second):"
+        );
         for row in rows {
             let track = &row["tracking"];
             let tones: Vec<String> = row["tones"]
@@ -244,11 +247,12 @@ fn print_text(
                 .collect();
             if row["accepted"].as_bool() == Some(true) {
                 println!(
-                    "  {:32} tones {:28} rms error alpha {:9.3} urad, beta {:9.3} urad",
+                    "  {:32} tones {:28} rms error alpha {:9.3} urad, beta {:9.3} urad, {} saturated periods",
                     row["method"].as_str().unwrap_or(""),
                     tones.join(", "),
                     track["rms_alpha_urad"].as_f64().unwrap_or(0.0),
-                    track["rms_beta_urad"].as_f64().unwrap_or(0.0)
+                    track["rms_beta_urad"].as_f64().unwrap_or(0.0),
+                    track["saturated_periods"]
                 );
             } else {
                 println!(
