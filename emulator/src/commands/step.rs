@@ -12,6 +12,7 @@ use serde::Serialize;
 use scanhil_emulator::mirror::SensingAxis;
 use scanhil_emulator::plant::{Plant, PlantStep};
 use scanhil_emulator::scene::{Part, Scene};
+use scanhil_protocol::ild::IldValue;
 use scanhil_protocol::plant_units::actuator_from_sensing;
 
 /// Arguments of `scanhil-emulator step`.
@@ -114,8 +115,16 @@ fn print_table(report: &Report<'_>, moves: bool) -> std::io::Result<()> {
     }
     writeln!(
         out,
-        "{:>7} {:>10} {:>9} {:>9} {:>12} {:>12} {:>12} {:>12}  events",
-        "k", "t_ms", "i_a_A", "i_b_A", "alpha_urad", "beta_urad", "true_a_urad", "true_b_urad"
+        "{:>7} {:>10} {:>9} {:>9} {:>12} {:>12} {:>12} {:>12}  {:<14} events",
+        "k",
+        "t_ms",
+        "i_a_A",
+        "i_b_A",
+        "alpha_urad",
+        "beta_urad",
+        "true_a_urad",
+        "true_b_urad",
+        "ild"
     )?;
     for s in &report.samples {
         let events: Vec<String> = s
@@ -128,9 +137,23 @@ fn print_table(report: &Report<'_>, moves: bool) -> std::io::Result<()> {
                 )
             })
             .collect();
+        // The ILD values of this period: raw distances, or the error's name.
+        let ild: Vec<String> = s
+            .sensor_samples
+            .iter()
+            .map(|sample| match sample.value {
+                IldValue::Distance(raw) => raw.to_string(),
+                IldValue::Error(e) => e.name().to_string(),
+            })
+            .collect();
+        let ild = if ild.is_empty() {
+            "-".to_string()
+        } else {
+            ild.join(",")
+        };
         writeln!(
             out,
-            "{:>7} {:>10.4} {:>9.5} {:>9.5} {:>12.3} {:>12.3} {:>12.3} {:>12.3}  {}{}",
+            "{:>7} {:>10.4} {:>9.5} {:>9.5} {:>12.3} {:>12.3} {:>12.3} {:>12.3}  {:<14} {}{}",
             s.period_index,
             s.t_end_s * 1e3,
             s.applied_currents_a.a,
@@ -139,6 +162,7 @@ fn print_table(report: &Report<'_>, moves: bool) -> std::io::Result<()> {
             s.measured_angles_rad.beta * 1e6,
             s.true_angles_rad.alpha * 1e6,
             s.true_angles_rad.beta * 1e6,
+            ild,
             events.join(","),
             if s.faulted { " FAULT" } else { "" },
         )?;
