@@ -4,6 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
+use scanhil_controller::imaging::emulated::EmulatedScanner;
 use scanhil_controller::imaging::feature::{FeatureParams, FeatureSelection, Region};
 use scanhil_controller::imaging::fill::FillMethod;
 use scanhil_controller::imaging::grid::GridMethod;
@@ -64,6 +65,9 @@ pub struct Args {
     /// RANSAC seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Score the z_s map against the surface of this emulator scene file (ground truth).
+    #[arg(long)]
+    truth_scene: Option<PathBuf>,
     /// Start of the sensor's measuring range (for ild_raw), mm.
     #[arg(long, default_value_t = MeasuringRange::ILD2300_100.start_mm)]
     range_start_mm: f64,
@@ -152,8 +156,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         feature,
         ..ImagingOptions::default()
     };
-    let imaging = image_samples(&recording.samples, &options)
+    let mut imaging = image_samples(&recording.samples, &options)
         .with_context(|| format!("imaging {}", args.input.display()))?;
+    if let Some(scene) = &args.truth_scene {
+        imaging.score_against(&EmulatedScanner::from_scene_file(scene)?.optics);
+    }
     let encoding = match args.ply {
         Encoding::Binary => PlyEncoding::BinaryLittleEndian,
         Encoding::Ascii => PlyEncoding::Ascii,
@@ -184,6 +191,15 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             f.points,
             f.plane.inliers,
             f.plane.plane.tilt_rad().to_degrees()
+        );
+    }
+    if let Some(e) = &report.truth_error {
+        let mm = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
+        println!(
+            "against the true surface: measured cells RMS {} mm, median |error| {} mm, max {} mm",
+            mm(e.covered_rms_mm),
+            mm(e.covered_median_abs_mm),
+            mm(e.covered_max_mm)
         );
     }
     println!("wrote {}", args.out_dir.display());

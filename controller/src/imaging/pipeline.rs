@@ -11,6 +11,7 @@ use super::feature::{FeatureError, FeatureHeight, FeatureParams, feature_height}
 use super::fill::{FillMethod, FillReport, fill_missing};
 use super::grid::{GridError, GridMethod, GridSpec, HeightMap, grid_points};
 use super::ply::{PlyEncoding, PlyError, write_ply_file};
+use super::progressive::{ProgressivePoint, ScanScene, progressive_errors};
 use super::ransac::{PlaneFit, RansacError, RansacParams, fit_plane};
 use super::reconstruct::{DEFAULT_MODEL, Reconstruction, ScanSample, reconstruct};
 
@@ -65,8 +66,29 @@ pub struct Imaging {
     pub plane: Option<PlaneFit>,
     /// The feature measurement.
     pub feature: Option<FeatureHeight>,
+    /// The z_s map's error against a known surface, after [`Imaging::score_against`].
+    pub truth_error: Option<ProgressivePoint>,
     /// The options used.
     pub options: ImagingOptions,
+}
+
+impl Imaging {
+    /// Scores the z_s height map (gridded and filled as the options say, whether or not the
+    /// map here is plane-subtracted) against the true surface of `scene`, over all the
+    /// points: see [`progressive_errors`] for the figures.
+    pub fn score_against(&mut self, scene: &impl ScanScene) {
+        let points = &self.reconstruction.cloud.points;
+        let t_end_s = points.iter().map(|p| p.t_s).fold(0.0, f64::max);
+        self.truth_error = progressive_errors(
+            points,
+            self.map.spec,
+            self.options.grid,
+            self.options.fill,
+            &[t_end_s],
+            |x, y| scene.true_z_mm(x, y),
+        )
+        .pop();
+    }
 }
 
 /// Why imaging failed.
@@ -135,6 +157,7 @@ pub fn image_samples(
         fill,
         plane,
         feature,
+        truth_error: None,
         options: *options,
     })
 }
@@ -169,6 +192,8 @@ pub struct ImagingReport {
     pub plane: Option<PlaneFit>,
     /// The feature height.
     pub feature: Option<FeatureHeight>,
+    /// The z_s map's error against the true surface, when one was given.
+    pub truth_error: Option<ProgressivePoint>,
     /// The options used.
     pub options: ImagingOptions,
     /// The files written, relative to the output folder.
@@ -221,6 +246,7 @@ pub fn write_outputs(
         fill: imaging.fill,
         plane: imaging.plane.clone(),
         feature: imaging.feature.clone(),
+        truth_error: imaging.truth_error,
         options: imaging.options,
         files: OUTPUT_FILES.iter().map(|f| f.to_string()).collect(),
     };
