@@ -310,13 +310,16 @@ impl SlcanHost {
                 if n == 0 {
                     break;
                 }
-                for event in decoder.push(&buf[..n]) {
-                    if let Ok(SlcanMessage::Frame(frame)) = event {
-                        if let Ok(message) = Message::decode(&frame) {
-                            if tx.send(message).is_err() {
-                                return;
-                            }
-                        }
+                let frames = decoder
+                    .push(&buf[..n])
+                    .into_iter()
+                    .filter_map(|event| match event {
+                        Ok(SlcanMessage::Frame(frame)) => Message::decode(&frame).ok(),
+                        _ => None,
+                    });
+                for message in frames {
+                    if tx.send(message).is_err() {
+                        return;
                     }
                 }
             }

@@ -401,7 +401,7 @@ fn sensor_clock(scene: &Scene, emulator: Option<&serde_json::Value>) -> SensorCl
 
 /// The scene's sensor measuring rate, Hz.
 fn measuring_rate_hz(scene: &Scene) -> f64 {
-    scene.sensor.clone().unwrap_or_default().measuring_rate_hz
+    scene.sensor.unwrap_or_default().measuring_rate_hz
 }
 
 /// Reads a child's stdout lines on a thread.

@@ -132,7 +132,8 @@ pub fn write(
         .imaging
         .feature
         .map(|params| feature_height(&xyz, &params).map_err(|error| error.to_string()));
-    let truth = super::truth::TrueSurface::from_scene(scene);
+    let truth = super::truth::TrueSurface::from_scene(scene)
+        .map_err(|error| anyhow::anyhow!("scene {}: surface: {error}", scene.name))?;
     let progressive = progressive_error(
         points,
         spec,
@@ -220,8 +221,11 @@ pub struct ProgressivePoint {
     pub scan_time_s: f64,
     /// Fraction of the grid's cells measured by then.
     pub coverage: f64,
-    /// RMS of (measured - true) surface height over the measured cells, mm.
+    /// RMS of (measured - true) surface height over the measured cells, mm (dominated by the
+    /// cells that straddle an edge).
     pub rms_error_mm: Option<f64>,
+    /// Median of |measured - true| over the measured cells, mm (the typical cell).
+    pub median_abs_error_mm: Option<f64>,
 }
 
 fn progressive_error(
@@ -245,18 +249,22 @@ fn progressive_error(
                 spec,
                 GridMethod::default(),
             );
+            let errors = truth
+                .map(|t| errors_against_truth(&map, t))
+                .unwrap_or_default();
             ProgressivePoint {
                 scan_time_s: until,
                 coverage: map.coverage_fraction(),
-                rms_error_mm: truth.and_then(|t| rms_against_truth(&map, t)),
+                rms_error_mm: rms(&errors),
+                median_abs_error_mm: median_abs(errors),
             }
         })
         .collect()
 }
 
-fn rms_against_truth(map: &HeightMap, truth: &super::truth::TrueSurface) -> Option<f64> {
-    let mut sum = 0.0;
-    let mut n = 0usize;
+/// (measured - true) height of every measured cell where the truth is known, mm.
+fn errors_against_truth(map: &HeightMap, truth: &super::truth::TrueSurface) -> Vec<f64> {
+    let mut errors = Vec::new();
     for iy in 0..map.spec.ny {
         for ix in 0..map.spec.nx {
             let Some(h) = map.heights_mm[map.spec.index(ix, iy)] else {
@@ -264,12 +272,22 @@ fn rms_against_truth(map: &HeightMap, truth: &super::truth::TrueSurface) -> Opti
             };
             let (x, y) = map.spec.centre_mm(ix, iy);
             if let Some(z) = truth.z_mm(x, y) {
-                sum += (h - z).powi(2);
-                n += 1;
+                errors.push(h - z);
             }
         }
     }
-    (n > 0).then(|| (sum / n as f64).sqrt())
+    errors
+}
+
+fn rms(errors: &[f64]) -> Option<f64> {
+    (!errors.is_empty())
+        .then(|| (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt())
+}
+
+fn median_abs(errors: Vec<f64>) -> Option<f64> {
+    let mut magnitudes: Vec<f64> = errors.into_iter().map(f64::abs).collect();
+    magnitudes.sort_by(f64::total_cmp);
+    magnitudes.get(magnitudes.len() / 2).copied()
 }
 
 fn write_plots(
@@ -316,10 +334,16 @@ fn write_plots(
         ];
         draw_charts(&out_dir.join("tracking.svg"), &charts).context("writing tracking.svg")?;
     }
-    let with_error: Vec<(f64, f64)> = progressive
-        .iter()
-        .filter_map(|p| p.rms_error_mm.map(|e| (p.scan_time_s, e)))
-        .collect();
+    let error_series = |label: &str, pick: fn(&ProgressivePoint) -> Option<f64>| Series {
+        label: label.into(),
+        points: progressive
+            .iter()
+            .filter_map(|p| pick(p).map(|e| (p.scan_time_s, e)))
+            .collect(),
+        markers: true,
+    };
+    let rms_series = error_series("RMS", |p| p.rms_error_mm);
+    let median_series = error_series("median |error|", |p| p.median_abs_error_mm);
     if !progressive.is_empty() {
         let mut charts = vec![Chart {
             title: "Coverage against scan time".into(),
@@ -336,18 +360,14 @@ fn write_plots(
                 markers: true,
             }],
         }];
-        if !with_error.is_empty() {
+        if !rms_series.points.is_empty() {
             charts.push(Chart {
                 title: "Reconstruction error against scan time".into(),
                 x_label: "scan time (s)".into(),
-                y_label: "RMS height error (mm)".into(),
+                y_label: "height error (mm)".into(),
                 x_axis: Axis::Linear,
                 y_axis: Axis::Log,
-                series: vec![Series {
-                    label: "RMS error".into(),
-                    points: with_error,
-                    markers: true,
-                }],
+                series: vec![rms_series, median_series],
             });
         }
         draw_charts(&out_dir.join("progressive.svg"), &charts)

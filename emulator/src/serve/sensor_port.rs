@@ -58,7 +58,7 @@ impl SensorPort {
         let clock = SensorClockTrack {
             samples: 0,
             counter_zero_s: None,
-            measuring_rate_hz: scene.sensor.clone().unwrap_or_default().measuring_rate_hz,
+            measuring_rate_hz: scene.sensor.unwrap_or_default().measuring_rate_hz,
         };
         if uri == "fsm" {
             return Ok((SensorPort::Can(clock), "fsm".into()));
