@@ -11,7 +11,7 @@
 //! writes to DIR (default `target/imaging-progressive`):
 //! - `progressive.json`: per reconstruction model, per trajectory, the error at 100
 //!   checkpoints (coverage, RMS/max over measured cells, RMS/max of the filled image);
-//! - `progressive.svg`: the same against scan time, Lissajous and raster side by side
+//! - `progressive.svg` (and `.png`): the same against scan time, Lissajous and raster side by side
 //!   (reconstructed with the paper's model);
 //! - `{lissajous,raster}_{0.05,0.1,0.25,0.5,1}s.png`: the image after that much scan time,
 //!   missing cells magenta (Fig. 6);
@@ -127,6 +127,7 @@ fn main() -> anyhow::Result<()> {
         }
         if model == GeometryModel::SmallAngle {
             comparison.draw(&out.join("progressive.svg"))?;
+            comparison.draw(&out.join("progressive.png"))?;
         }
         comparisons.push(comparison);
     }
