@@ -4,7 +4,7 @@
 //! 30 W coil power limit with a full-range (+-10 output units = +-1.5 deg) sine at 52 Hz. On one
 //! sensing axis that takes a current amplitude `I = 10 / |G(j 2 pi 52)| * AMPS_PER_INPUT_UNIT`
 //! (3.856 A with the paper's model). The 45 degree rotation preserves `i_a^2 + i_b^2`, so the
-//! mean power over both coil axes is `R I^2 / 2`, and `R = 2 * 30 W / I^2` (4.035 ohm per
+//! mean power over both coil axes is `R I^2 / 2`, and `R = 2 * 30 W / I^2` (4.034 ohm per
 //! actuator axis).
 //!
 //! The limit is on the mean power over a sliding rectangular thermal window (default 1 s, an
@@ -234,7 +234,7 @@ mod tests {
         let amplitude_a = full_range_current_a(&mirror, 52.0);
         assert!((amplitude_a - 3.856).abs() < 1e-3, "{amplitude_a}");
         let r = coil_resistance_ohm(&mirror);
-        assert!((r - 4.035).abs() < 1e-3, "{r}");
+        assert!((r - 4.0343).abs() < 1e-4, "{r}");
         // A stiffer mirror needs less current, hence a larger resistance for the same 30 W.
         let stiffer = MirrorConfig {
             dc_gain: 22.8,
