@@ -9,6 +9,8 @@ use anyhow::Context;
 use nalgebra::Complex;
 use scanhil_controller::identify::{ResponsePoint, SteppedSine, Target, identify};
 use scanhil_controller::link::{NominalPlantLink, PlantLink};
+use scanhil_controller::run::plant_link::LinkedPlant;
+use scanhil_controller::run::scenario::NodeLink;
 use scanhil_controller::settings::ControllerSettings;
 use scanhil_controller::trajectory::SensingAxis;
 use scanhil_report::{Axis, Chart, Series, draw_charts};
@@ -38,6 +40,13 @@ pub struct Args {
     /// The plant to excite.
     #[arg(long, value_enum, default_value = "nominal")]
     plant: PlantChoice,
+    /// Excite a mirror node on a real link instead of --plant: `pty` (the emulator on a pty
+    /// pair, serving --scene), `slcan:PATH[@BITRATE]` or `socketcan:IFACE`.
+    #[arg(long)]
+    fsm: Option<String>,
+    /// The scene the emulator serves with `--fsm pty`.
+    #[arg(long)]
+    scene: Option<PathBuf>,
     /// Open or closed loop.
     #[arg(long, value_enum, default_value = "open-loop")]
     mode: Mode,
@@ -109,8 +118,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         0.5 / period_s
     );
     let plant_model = settings.as_ref().map(|s| s.plant).unwrap_or_default();
-    let mut link: Box<dyn PlantLink> = match args.plant {
-        PlantChoice::Nominal => Box::new(NominalPlantLink::new(
+    let mut link: Box<dyn PlantLink> = match (&args.fsm, args.plant) {
+        (Some(fsm), _) => Box::new(LinkedPlant::connect(
+            &NodeLink::parse(fsm),
+            args.scene.as_deref(),
+            None,
+            period_s,
+        )?),
+        (None, PlantChoice::Nominal) => Box::new(NominalPlantLink::new(
             &plant_model,
             period_s,
             args.noise_urad * 1e-6,
@@ -159,7 +174,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         })
         .collect();
     let json = serde_json::json!({
-        "plant": format!("{:?}", args.plant).to_lowercase(),
+        "plant": args
+            .fsm
+            .clone()
+            .unwrap_or_else(|| format!("{:?}", args.plant).to_lowercase()),
         "mode": format!("{:?}", args.mode),
         "controller": args.controller.as_ref().map(|p| p.display().to_string()),
         "plan": plan,
