@@ -74,7 +74,7 @@ pub struct ResponsePoint {
     pub phase_deg: f64,
     /// Coherence gamma^2 between excitation and response, 0..1.
     pub coherence: f64,
-    /// Response of the other axis relative to the excited one's excitation, dB (cross-talk).
+    /// H1 estimate of the other axis' response to this axis' excitation, dB (cross-talk).
     pub cross_axis_db: f64,
 }
 
@@ -93,7 +93,8 @@ pub fn identify(
         let f_hz = f64::from(plan.cycles_per_block) / (block_len as f64 * period_s);
         let settle = (plan.settle_s / period_s).round() as usize;
         let w = std::f64::consts::TAU * f_hz * period_s;
-        let (mut syu, mut suu, mut syy, mut scross) = (Complex::new(0.0, 0.0), 0.0, 0.0, 0.0);
+        let (mut syu, mut sxu, mut suu, mut syy) =
+            (Complex::new(0.0, 0.0), Complex::new(0.0, 0.0), 0.0, 0.0);
         let mut k = 0usize;
         for block in 0..=plan.blocks as usize {
             let len = if block == 0 { settle } else { block_len };
@@ -136,7 +137,7 @@ pub fn identify(
                 syu += y_sum * u_sum.conj();
                 suu += u_sum.norm_sqr();
                 syy += y_sum.norm_sqr();
-                scross += x_sum.norm_sqr();
+                sxu += x_sum * u_sum.conj();
             }
         }
         let h = syu / suu;
@@ -146,7 +147,7 @@ pub fn identify(
             magnitude_db: 20.0 * h.norm().log10(),
             phase_deg: h.arg().to_degrees(),
             coherence: syu.norm_sqr() / (suu * syy),
-            cross_axis_db: 10.0 * (scross / suu).log10(),
+            cross_axis_db: 20.0 * (sxu / suu).norm().log10(),
         });
     }
     Ok(points)
