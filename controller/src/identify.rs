@@ -1,5 +1,5 @@
-//! A system analyser in software: stepped-sine excitation of one sensing axis through a
-//! [`PlantLink`], and the frequency response with its coherence, of the open-loop plant
+//! A system analyser in software: stepped-sine ([`identify`]) or swept-sine
+//! ([`identify_swept`]) excitation of one sensing axis through a [`PlantLink`], and the frequency response with its coherence, of the open-loop plant
 //! (coil command to angle, in the paper's units) or of the closed loop (reference to angle).
 //!
 //! At each frequency the sine is first run for `settle_s` so transients die out, then for
@@ -16,7 +16,7 @@ use scanhil_protocol::plant_units::{
 
 use crate::link::{LinkError, PlantLink};
 use crate::scan_controller::ScanController;
-use crate::trajectory::SensingAxis;
+use crate::trajectory::{SensingAxis, swept_sine_phase};
 
 /// The stepped-sine plan.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -78,77 +78,187 @@ pub struct ResponsePoint {
     pub cross_axis_db: f64,
 }
 
-/// Runs the plan through `link` and returns one point per frequency.
+/// Drives one axis through the link, one period per call, in either target mode.
+struct Exciter<'a> {
+    link: &'a mut dyn PlantLink,
+    target: &'a mut Target,
+    axis: SensingAxis,
+    measured: SensingPair,
+}
+
+impl Exciter<'_> {
+    /// Applies `excitation` for one period; returns this period's measured response on the
+    /// excited and on the other axis (paper output units open loop, rad closed loop).
+    fn period(&mut self, excitation: f64) -> Result<(f64, f64), LinkError> {
+        let axis = self.axis;
+        let measured = self.measured;
+        let (command, scale) = match self.target {
+            Target::OpenLoop => (
+                actuator_from_sensing(axis.pair(excitation * AMPS_PER_INPUT_UNIT)),
+                1.0 / RAD_PER_OUTPUT_UNIT,
+            ),
+            Target::ClosedLoop(controller) => {
+                (controller.step(axis.pair(excitation), measured), 1.0)
+            }
+        };
+        self.measured = self.link.exchange(command)?;
+        Ok((axis.of(measured) * scale, axis.other().of(measured) * scale))
+    }
+}
+
+/// Sums of cross and auto spectra over blocks, at one frequency.
+#[derive(Default)]
+struct SpectralSums {
+    syu: Complex<f64>,
+    sxu: Complex<f64>,
+    suu: f64,
+    syy: f64,
+}
+
+impl SpectralSums {
+    /// Adds one block's Fourier coefficients of excitation, response and other axis.
+    fn add(&mut self, u: Complex<f64>, y: Complex<f64>, x: Complex<f64>) {
+        self.syu += y * u.conj();
+        self.sxu += x * u.conj();
+        self.suu += u.norm_sqr();
+        self.syy += y.norm_sqr();
+    }
+
+    fn point(&self, f_hz: f64) -> ResponsePoint {
+        let h = self.syu / self.suu;
+        ResponsePoint {
+            f_hz,
+            magnitude: h.norm(),
+            magnitude_db: 20.0 * h.norm().log10(),
+            phase_deg: h.arg().to_degrees(),
+            coherence: self.syu.norm_sqr() / (self.suu * self.syy),
+            cross_axis_db: 20.0 * (self.sxu / self.suu).norm().log10(),
+        }
+    }
+}
+
+/// Runs the stepped-sine plan through `link` and returns one point per frequency.
 pub fn identify(
     link: &mut dyn PlantLink,
     plan: &SteppedSine,
     target: &mut Target,
 ) -> Result<Vec<ResponsePoint>, LinkError> {
     let period_s = link.period_s();
-    let mut measured = SensingPair::default();
+    let mut exciter = Exciter {
+        link,
+        target,
+        axis: plan.axis,
+        measured: SensingPair::default(),
+    };
     let mut points = Vec::with_capacity(plan.frequencies_hz.len());
     for &requested in &plan.frequencies_hz {
-        let block_len =
-            ((f64::from(plan.cycles_per_block) / (requested * period_s)).round() as usize).max(2);
-        let f_hz = f64::from(plan.cycles_per_block) / (block_len as f64 * period_s);
+        let cycles = f64::from(plan.cycles_per_block);
+        let block_len = ((cycles / (requested * period_s)).round() as usize).max(2);
+        let f_hz = cycles / (block_len as f64 * period_s);
         let settle = (plan.settle_s / period_s).round() as usize;
         let w = std::f64::consts::TAU * f_hz * period_s;
-        let (mut syu, mut sxu, mut suu, mut syy) =
-            (Complex::new(0.0, 0.0), Complex::new(0.0, 0.0), 0.0, 0.0);
+        let mut sums = SpectralSums::default();
         let mut k = 0usize;
         for block in 0..=plan.blocks as usize {
             let len = if block == 0 { settle } else { block_len };
-            let (mut u_sum, mut y_sum, mut x_sum) = (
-                Complex::new(0.0, 0.0),
-                Complex::new(0.0, 0.0),
-                Complex::new(0.0, 0.0),
-            );
+            let zero = Complex::new(0.0, 0.0);
+            let (mut u_sum, mut y_sum, mut x_sum) = (zero, zero, zero);
             for _ in 0..len {
                 let excitation = plan.amplitude * (w * k as f64).sin();
-                let (command, response, other) = match target {
-                    Target::OpenLoop => {
-                        let command =
-                            actuator_from_sensing(plan.axis.pair(excitation * AMPS_PER_INPUT_UNIT));
-                        let to_units = |rad: f64| rad / RAD_PER_OUTPUT_UNIT;
-                        let response = to_units(plan.axis.of(measured));
-                        let other = to_units(plan.axis.other().of(measured));
-                        (command, response, other)
-                    }
-                    Target::ClosedLoop(controller) => {
-                        let reference = plan.axis.pair(excitation);
-                        let command = controller.step(reference, measured);
-                        (
-                            command,
-                            plan.axis.of(measured),
-                            plan.axis.other().of(measured),
-                        )
-                    }
-                };
-                if block > 0 {
-                    let basis = Complex::from_polar(1.0, -w * k as f64);
-                    u_sum += basis * excitation;
-                    y_sum += basis * response;
-                    x_sum += basis * other;
-                }
-                measured = link.exchange(command)?;
+                let (response, other) = exciter.period(excitation)?;
+                let basis = Complex::from_polar(1.0, -w * k as f64);
+                u_sum += basis * excitation;
+                y_sum += basis * response;
+                x_sum += basis * other;
                 k += 1;
             }
             if block > 0 {
-                syu += y_sum * u_sum.conj();
-                suu += u_sum.norm_sqr();
-                syy += y_sum.norm_sqr();
-                sxu += x_sum * u_sum.conj();
+                sums.add(u_sum, y_sum, x_sum);
             }
         }
-        let h = syu / suu;
-        points.push(ResponsePoint {
-            f_hz,
-            magnitude: h.norm(),
-            magnitude_db: 20.0 * h.norm().log10(),
-            phase_deg: h.arg().to_degrees(),
-            coherence: syu.norm_sqr() / (suu * syy),
-            cross_axis_db: 20.0 * (sxu / suu).norm().log10(),
-        });
+        points.push(sums.point(f_hz));
     }
     Ok(points)
+}
+
+/// A logarithmic swept-sine plan: `sweeps` repetitions, each a sweep from `start_hz` to
+/// `stop_hz` over `sweep_s` followed by `quiet_s` of zero excitation, so the response has died
+/// out before the next sweep and each repetition's record holds the whole response. Then
+/// `Y(f) = H(f) U(f)` holds exactly for the records' Fourier transforms at any frequency, and
+/// the repetitions give the coherence.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct SweptSinePlan {
+    /// The excited sensing axis.
+    pub axis: SensingAxis,
+    /// Sweep start frequency, Hz.
+    pub start_hz: f64,
+    /// Sweep stop frequency, Hz.
+    pub stop_hz: f64,
+    /// Duration of one sweep, s.
+    pub sweep_s: f64,
+    /// Zero excitation after each sweep, s (several decay times of the plant or loop).
+    pub quiet_s: f64,
+    /// Repetitions (the coherence needs at least two).
+    pub sweeps: u32,
+    /// Amplitude, as for [`SteppedSine::amplitude`].
+    pub amplitude: f64,
+    /// The frequencies at which the response is estimated, Hz (inside the sweep's band).
+    pub frequencies_hz: Vec<f64>,
+}
+
+/// Runs the swept-sine plan through `link` and returns one point per analysis frequency.
+pub fn identify_swept(
+    link: &mut dyn PlantLink,
+    plan: &SweptSinePlan,
+    target: &mut Target,
+) -> Result<Vec<ResponsePoint>, LinkError> {
+    let period_s = link.period_s();
+    let mut exciter = Exciter {
+        link,
+        target,
+        axis: plan.axis,
+        measured: SensingPair::default(),
+    };
+    let sweep_len = (plan.sweep_s / period_s).round() as usize;
+    let record_len = sweep_len + (plan.quiet_s / period_s).round() as usize;
+    let mut sums: Vec<SpectralSums> = plan
+        .frequencies_hz
+        .iter()
+        .map(|_| SpectralSums::default())
+        .collect();
+    let (mut u, mut y, mut x) = (
+        vec![0.0; record_len],
+        vec![0.0; record_len],
+        vec![0.0; record_len],
+    );
+    for _ in 0..plan.sweeps {
+        for k in 0..record_len {
+            let t_s = k as f64 * period_s;
+            u[k] = if k < sweep_len {
+                plan.amplitude
+                    * swept_sine_phase(plan.start_hz, plan.stop_hz, plan.sweep_s, t_s).sin()
+            } else {
+                0.0
+            };
+            (y[k], x[k]) = exciter.period(u[k])?;
+        }
+        for (sum, &f_hz) in sums.iter_mut().zip(&plan.frequencies_hz) {
+            let w = std::f64::consts::TAU * f_hz * period_s;
+            sum.add(dft_at(&u, w), dft_at(&y, w), dft_at(&x, w));
+        }
+    }
+    Ok(sums
+        .iter()
+        .zip(&plan.frequencies_hz)
+        .map(|(s, &f)| s.point(f))
+        .collect())
+}
+
+/// The Fourier transform of `samples` at `w` rad per sample.
+fn dft_at(samples: &[f64], w: f64) -> Complex<f64> {
+    samples
+        .iter()
+        .enumerate()
+        .map(|(k, &v)| Complex::from_polar(v, -w * k as f64))
+        .sum()
 }

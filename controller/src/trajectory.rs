@@ -138,6 +138,17 @@ pub enum Trajectory {
     },
 }
 
+/// The phase (rad) at `t_s` of a logarithmic sweep from `start_hz` to `stop_hz` over
+/// `duration_s` (instantaneous frequency `start_hz (stop_hz/start_hz)^(t/duration)`).
+#[must_use]
+pub fn swept_sine_phase(start_hz: f64, stop_hz: f64, duration_s: f64, t_s: f64) -> f64 {
+    let ratio_ln = (stop_hz / start_hz).ln();
+    if ratio_ln == 0.0 {
+        return TAU * start_hz * t_s;
+    }
+    TAU * start_hz * duration_s / ratio_ln * ((ratio_ln * t_s / duration_s).exp() - 1.0)
+}
+
 /// A triangle of period `1/f_hz` between -1 and 1, starting at -1.
 fn triangle(f_hz: f64, t_s: f64) -> f64 {
     let phase = (f_hz * t_s).rem_euclid(1.0);
@@ -275,10 +286,9 @@ impl Trajectory {
                 if !(0.0..duration_s).contains(&t_s) {
                     return SensingPair::default();
                 }
-                let ratio_ln = (stop_hz / start_hz).ln();
-                let phase = TAU * start_hz * duration_s / ratio_ln
-                    * ((ratio_ln * t_s / duration_s).exp() - 1.0);
-                axis.pair(amplitude_rad * phase.sin())
+                axis.pair(
+                    amplitude_rad * swept_sine_phase(start_hz, stop_hz, duration_s, t_s).sin(),
+                )
             }
         }
     }

@@ -7,7 +7,9 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use nalgebra::Complex;
-use scanhil_controller::identify::{ResponsePoint, SteppedSine, Target, identify};
+use scanhil_controller::identify::{
+    ResponsePoint, SteppedSine, SweptSinePlan, Target, identify, identify_swept,
+};
 use scanhil_controller::link::{NominalPlantLink, PlantLink};
 use scanhil_controller::run::plant_link::LinkedPlant;
 use scanhil_controller::run::scenario::NodeLink;
@@ -32,6 +34,16 @@ pub enum Mode {
     OpenLoop,
     /// Reference to angle with --controller (T).
     ClosedLoop,
+}
+
+/// The excitation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Excitation {
+    /// One sine per frequency, settled, averaged over --blocks blocks of --cycles periods.
+    Stepped,
+    /// --blocks logarithmic sweeps from --from-hz to --to-hz of --sweep-s each, with
+    /// --quiet-s of rest after each; the response is estimated at the --points frequencies.
+    Swept,
 }
 
 /// Arguments of `scanhil identify`.
@@ -68,13 +80,22 @@ pub struct Args {
     /// Excitation amplitude: input units (A) open loop (default 0.02), mrad of reference closed loop (default 0.1; keep the coil command below its limit at high frequency).
     #[arg(long)]
     amplitude: Option<f64>,
+    /// Stepped or swept sine.
+    #[arg(long, value_enum, default_value = "stepped")]
+    excitation: Excitation,
+    /// Duration of one sweep (--excitation swept), s.
+    #[arg(long, default_value_t = 10.0)]
+    sweep_s: f64,
+    /// Rest after each sweep (--excitation swept), s: several decay times of the plant or loop.
+    #[arg(long, default_value_t = 2.5)]
+    quiet_s: f64,
     /// Settling time before each measurement, s (the plant's decay time is 0.22 s).
     #[arg(long, default_value_t = 2.5)]
     settle_s: f64,
     /// Whole periods per averaging block.
     #[arg(long, default_value_t = 4)]
     cycles: u32,
-    /// Averaging blocks per frequency (>= 2 for a meaningful coherence).
+    /// Averaging blocks per frequency, or sweeps (>= 2 for a meaningful coherence).
     #[arg(long, default_value_t = 4)]
     blocks: u32,
     /// White angle noise of the nominal plant, urad RMS.
@@ -151,15 +172,39 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             )
         }
     };
-    let plan = SteppedSine {
-        axis: args.axis,
-        frequencies_hz: SteppedSine::log_frequencies(args.from_hz, args.to_hz, args.points),
-        amplitude,
-        settle_s: args.settle_s,
-        cycles_per_block: args.cycles,
-        blocks: args.blocks,
+    let frequencies_hz = SteppedSine::log_frequencies(args.from_hz, args.to_hz, args.points);
+    let (points, plan) = match args.excitation {
+        Excitation::Stepped => {
+            let plan = SteppedSine {
+                axis: args.axis,
+                frequencies_hz,
+                amplitude,
+                settle_s: args.settle_s,
+                cycles_per_block: args.cycles,
+                blocks: args.blocks,
+            };
+            (
+                identify(link.as_mut(), &plan, &mut target)?,
+                serde_json::to_value(&plan)?,
+            )
+        }
+        Excitation::Swept => {
+            let plan = SweptSinePlan {
+                axis: args.axis,
+                start_hz: args.from_hz,
+                stop_hz: args.to_hz,
+                sweep_s: args.sweep_s,
+                quiet_s: args.quiet_s,
+                sweeps: args.blocks,
+                amplitude,
+                frequencies_hz,
+            };
+            (
+                identify_swept(link.as_mut(), &plan, &mut target)?,
+                serde_json::to_value(&plan)?,
+            )
+        }
     };
-    let points = identify(link.as_mut(), &plan, &mut target)?;
     let rows: Vec<serde_json::Value> = points
         .iter()
         .map(|p| {
