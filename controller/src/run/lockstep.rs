@@ -1,6 +1,8 @@
 //! The lockstep loop, controller side: per period k, compute the coil command from the newest
 //! angle reading, send CoilCommand(k) and Step(k), and wait for AngleReading(k). Time is
-//! virtual (`k * period`), so the run is deterministic for a seed.
+//! virtual (`k * period`), so the run is deterministic for a seed. After the last period,
+//! [`MirrorLink::end_lockstep`] ends the run with the node (on every transport the same way,
+//! a bus included).
 
 use scanhil_protocol::plant_units::SensingPair;
 
@@ -91,6 +93,11 @@ pub async fn run(
         if k % 256 == 0 {
             progress.set(k);
         }
+    }
+    if record.stopped_by.is_none()
+        && let Err(error) = mirror.end_lockstep(record.periods_done).await
+    {
+        record.stopped_by = Some(error);
     }
     progress.set(record.periods_done);
     record.saturated_periods = controller.saturated_periods();

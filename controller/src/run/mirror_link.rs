@@ -7,7 +7,9 @@ use std::time::Duration;
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::ild::IldValue;
 use scanhil_protocol::link::{CanLink, LinkError, VirtualClock};
-use scanhil_protocol::message::{CoilCommand, FaultKind, Message, MessageError, NodeId, NodeState};
+use scanhil_protocol::message::{
+    CoilCommand, FaultKind, Message, MessageError, NodeId, NodeState, Status, U24_MAX,
+};
 use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
 /// Why the loop stopped early.
@@ -126,6 +128,42 @@ impl MirrorLink {
         self.send(&command, t_send).await?;
         self.send(&Message::Step { step: k as u32 }, t_send).await?;
         self.await_reading(k, (k + 1) as f64 * self.period_s).await
+    }
+
+    /// Lockstep, after the last period: tells the node the run is over (the controller's
+    /// Status(ready) at loop time `periods_done * period`) and collects what the node sent after
+    /// the last reading (the sensor's samples of the last period), up to the node's own
+    /// Status(ready), its last frame. On a bus the node sees no hang-up: this is how it learns
+    /// to finish. A node that hangs up instead, or does not answer within the watchdog's
+    /// allowance (a device without this exchange), ends it too: the scan itself is complete.
+    ///
+    /// # Errors
+    /// Link errors other than the hang-up.
+    pub async fn end_lockstep(&mut self, periods_done: u64) -> Result<(), LoopError> {
+        let t_s = periods_done as f64 * self.period_s;
+        let status = Message::Status(Status {
+            node: NodeId::Controller,
+            state: NodeState::Ready,
+            step: (periods_done & u64::from(U24_MAX)) as u32,
+            node_time_us: ((t_s * 1e6).round() as u64 & u64::from(U24_MAX)) as u32,
+        });
+        self.send(&status, t_s).await?;
+        let deadline = tokio::time::Instant::now() + self.total_allowance();
+        loop {
+            let frame = match tokio::time::timeout_at(deadline, self.recv(t_s)).await {
+                Err(_) | Ok(Err(LinkError::HangUp { .. })) => return Ok(()),
+                Ok(frame) => frame?,
+            };
+            let events = self.events.len();
+            self.classify(&frame, t_s)?;
+            let node_ready = self.events.len() > events
+                && self.events.last().is_some_and(|event| {
+                    event.node == NodeId::Fsm && event.status == Some(NodeState::Ready)
+                });
+            if node_ready {
+                return Ok(());
+            }
+        }
     }
 
     /// Real time: waits for the next AngleReading the clock master sends; returns its period

@@ -6,7 +6,9 @@
 //! period, and a Status frame every `1 / heartbeat_hz` seconds of loop time. The watchdog is
 //! armed by the first frame from the controller: when no frame arrives for `watchdog_periods`
 //! wall-clock allowances, the node drops its coil currents to zero, sends a LinkTimeout
-//! fault and a Status(fault), and the run ends.
+//! fault and a Status(fault), and the run ends. The run also ends when the controller hangs
+//! up, or when it sends its own Status frame in a state other than running (the end of the
+//! run on a bus): the node answers Status(ready) as its last frame.
 
 use std::time::Duration;
 
@@ -115,9 +117,33 @@ pub async fn run(
                     links.fsm.send(&status).await?;
                 }
             }
+            Message::Status(status)
+                if status.node == NodeId::Controller && status.state != NodeState::Running =>
+            {
+                return end_of_run(node, links).await;
+            }
             _ => {}
         }
     }
+}
+
+/// The controller ended the run (its Status frame, in any state but running): the node answers
+/// with its own Status(ready) as its last frame, so the controller knows it has every frame of
+/// the last period, and finishes. This is how the run ends on a bus, where no hang-up comes;
+/// on a serial line the node then waits for the hang-up, as closing the line first would drop
+/// what the controller has not read yet.
+async fn end_of_run(node: &MirrorNode, links: &mut ServeLinks) -> anyhow::Result<LoopReport> {
+    let k = node.next_period();
+    let ready = status_frame(NodeState::Ready, k, node.plant().period_s())?;
+    links.fsm.send(&ready).await?;
+    if links.fsm.slcan_bitrate().is_some() {
+        linger(links).await?;
+    }
+    Ok(LoopReport {
+        outcome: ServeOutcome::Finished,
+        timing: serde_json::Value::Null,
+        error: None,
+    })
 }
 
 /// The AngleReading frame of a stepped period (sequence counter = period mod 2^16).
