@@ -40,6 +40,12 @@ impl AxisController {
         }
     }
 
+    /// The command limit, input units.
+    #[must_use]
+    pub fn output_limit(&self) -> f64 {
+        self.output_limit
+    }
+
     /// The linear discrete controller (limits ignored), for analysis.
     #[must_use]
     pub fn linear(&self) -> Cascade {
@@ -101,15 +107,17 @@ impl ScanController {
         measured_angles_rad: SensingPair,
     ) -> ActuatorPair {
         let error = |r: f64, y: f64| (r - y) / RAD_PER_OUTPUT_UNIT;
+        let alpha = self
+            .alpha
+            .step(error(reference_rad.alpha, measured_angles_rad.alpha));
+        let beta = self
+            .beta
+            .step(error(reference_rad.beta, measured_angles_rad.beta));
+        let at_axis_limit =
+            alpha.abs() >= self.alpha.output_limit() || beta.abs() >= self.beta.output_limit();
         let command_a = SensingPair {
-            alpha: self
-                .alpha
-                .step(error(reference_rad.alpha, measured_angles_rad.alpha))
-                * AMPS_PER_INPUT_UNIT,
-            beta: self
-                .beta
-                .step(error(reference_rad.beta, measured_angles_rad.beta))
-                * AMPS_PER_INPUT_UNIT,
+            alpha: alpha * AMPS_PER_INPUT_UNIT,
+            beta: beta * AMPS_PER_INPUT_UNIT,
         };
         let coils = actuator_from_sensing(command_a);
         let limit = self.coil_current_limit_a;
@@ -117,7 +125,7 @@ impl ScanController {
             a: coils.a.clamp(-limit, limit),
             b: coils.b.clamp(-limit, limit),
         };
-        if clamped != coils {
+        if at_axis_limit || clamped != coils {
             self.saturated_periods += 1;
         }
         clamped
@@ -130,7 +138,8 @@ impl ScanController {
         self.saturated_periods = 0;
     }
 
-    /// Periods in which a coil command was clipped since the last reset.
+    /// Periods since the last reset in which an axis command sat at its limit or a coil
+    /// command was clipped.
     #[must_use]
     pub fn saturated_periods(&self) -> u64 {
         self.saturated_periods

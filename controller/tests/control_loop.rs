@@ -112,3 +112,52 @@ fn dual_tone_tracks_the_lissajous_better_than_the_pid() {
     );
     assert_eq!(dual.saturated_periods, 0);
 }
+
+#[test]
+fn scan_controller_scales_rotates_and_clips() {
+    let s = load("pid-series.json");
+    let mut c = s.build().unwrap();
+    // A small alpha error: both coils carry u / sqrt 2 with the same sign; beta-only: opposite.
+    let tiny = 1e-7;
+    let u = c.step(
+        SensingPair {
+            alpha: tiny,
+            beta: 0.0,
+        },
+        SensingPair::default(),
+    );
+    assert!(u.a > 0.0 && (u.a - u.b).abs() < 1e-15, "{u:?}");
+    // The first-period command is the proportional path at high frequency: kp (wt / wd)
+    // times the error in output units (Tustin: b0 of the discrete paths).
+    let axis_a = u.a * std::f64::consts::SQRT_2;
+    let expected = s.axis_controller().unwrap().linear().sections()[0].b[0]
+        * s.axis_controller().unwrap().linear().sections()[1].b[0]
+        * tiny
+        / RAD_PER_OUTPUT_UNIT;
+    assert!(
+        (axis_a - expected).abs() < 1e-12 * expected.abs().max(1.0),
+        "{axis_a} vs {expected}"
+    );
+    c.reset();
+    let u = c.step(
+        SensingPair {
+            alpha: 0.0,
+            beta: tiny,
+        },
+        SensingPair::default(),
+    );
+    assert!(u.b > 0.0 && (u.a + u.b).abs() < 1e-15, "{u:?}");
+    // A huge error on both axes: each coil is clipped to the coil limit and counted.
+    c.reset();
+    let big = SensingPair {
+        alpha: 0.02,
+        beta: -0.02,
+    };
+    let u = c.step(big, SensingPair::default());
+    assert!(u.a.abs() <= s.coil_current_limit_a && u.b.abs() <= s.coil_current_limit_a);
+    assert!((u.a.abs() - s.coil_current_limit_a).abs() < 1e-12, "{u:?}");
+    c.step(big, SensingPair::default());
+    assert!(c.saturated_periods() >= 1);
+    c.reset();
+    assert_eq!(c.saturated_periods(), 0);
+}
