@@ -29,5 +29,8 @@ step ci/vcan-vm.sh --prepare
 step ci/vm/selftest.sh
 # The SocketCAN link's own tests on vcan0.
 step ci/vm/socketcan-tests.sh
+# The loop over socketcan:vcan0 (emulator and controller as two processes, candump beside them),
+# decoded with cantools on the host and compared bit for bit with the same scan over pty links.
+step ci/vm/loop-vcan.sh
 
 echo "<== vm step: all ok in $(elapsed_s "$step_start") s" >&2

@@ -1,0 +1,211 @@
+#!/usr/bin/env python3
+"""Checks the loop run over a real CAN bus (ci/vm/loop-vcan.sh) against the same scan over pty links.
+
+OUT holds three output folders of `scanhil scan fixtures/scenarios/vcan-small.json`:
+  vcan/     the mirror node and the sensor's Distance frames on socketcan:vcan0, with
+            vcan/candump.log, what `candump -L vcan0` recorded beside the two programs;
+  pty-can/  the mirror node on SLCAN over a pty, the Distance frames on it (--sensor fsm);
+  pty-ild/  the default emulated links: SLCAN for the mirror, the ILD RS422 stream for the sensor.
+
+Checks:
+1. The capture, read by cantools' candump log parser: every line is a frame on vcan0, every frame
+   decodes with the DBC, wall-clock stamps never go back; CoilCommand.Seq, Step.Step and
+   AngleReading.Seq run 0, 1, ..., N-1 (N = the report's periods) without a gap, the Distance
+   frames' IldCounter counts up by one (18 bits) and there is one per sensor sample the emulator
+   sent; the last frame is the node's StatusFsm(ready) that ends the run.
+2. The bus carried exactly what the controller recorded in vcan/fsm.log (its candump log of the
+   link, stamped with loop time and named `fsm`, the same on every transport): the controller's
+   frames and the emulator's (mirror and sensor nodes; senders per the DBC) are the same (id, data) sequences, in the
+   same order, in both. The merged order differs and must: the controller logs a frame when it
+   reads it, so the node's Distance frames of period k, sent after AngleReading(k), are logged
+   after the controller's CoilCommand(k + 1) although they were on the bus before it. The stamps
+   (wall clock vs loop time) and the interface column differ too.
+3. Lockstep determinism across transports:
+   - fsm.log of vcan and pty-can are identical byte for byte (same frames, same loop-time stamps);
+   - points.ply, height_map.csv, height_map.png, tracking.svg and progressive.svg are identical byte
+     for byte in all three folders (the point cloud, the height map, the tracking record and the
+     reconstruction error against scan time);
+   - report.json is identical in all three, every number compared exactly (JSON floats are written
+     shortest-round-trip, so equal numbers are equal bits), except the fields that name or count the
+     transport itself: scenario.links (the links asked for), links.sensor (the ILD stream's own
+     counters, zero when the sensor is on CAN) and emulator.summary.link.frames_sent (the Distance
+     frames travel on the mirror's link on CAN, on their own line with ILD). There are no
+     wall-clock fields in a lockstep report (timing.controller and timing.emulator are null,
+     and are compared as such).
+4. Both runs ended cleanly: complete, every period done, no sequence gap or malformed frame seen by
+   the controller, the emulator finished by itself (exit status 0, not killed) on every transport.
+
+Usage: vcan_loop_check.py OUT DBC
+Prints one line per failed check and a summary; exit status 1 on any failure.
+"""
+
+import json
+import re
+import sys
+from pathlib import Path
+
+import cantools
+from cantools.logreader import Parser
+
+BYTE_IDENTICAL = ["points.ply", "height_map.csv", "height_map.png", "tracking.svg", "progressive.svg"]
+# Report fields that describe or count the transport, per compared folder (JSON paths, prefixes).
+TRANSPORT_FIELDS = {
+    "pty-can": [("scenario", "links", "fsm")],
+    "pty-ild": [
+        ("scenario", "links", "fsm"),
+        ("scenario", "links", "sensor"),
+        ("links", "sensor"),
+        ("emulator", "summary", "link", "frames_sent"),
+    ],
+}
+CANDUMP_LINE = re.compile(r"^\((\d+\.\d+)\) (\S+) ([0-9A-F]{3}|[0-9A-F]{8})#([0-9A-F]*)$")
+
+passed = 0
+failed = 0
+
+
+def check(ok, what):
+    global passed, failed
+    if ok:
+        passed += 1
+    else:
+        failed += 1
+        print(f"vcan_loop_check: FAIL: {what}", file=sys.stderr)
+    return ok
+
+
+def read_candump(path):
+    """(stamp, interface, id, data) per line; a line that is not candump -L is a failure."""
+    frames = []
+    for number, line in enumerate(path.read_text(encoding="ascii").splitlines(), 1):
+        match = CANDUMP_LINE.match(line)
+        if check(match is not None, f"{path}:{number}: not a candump -L line: {line!r}"):
+            stamp, interface, frame_id, data = match.groups()
+            frames.append((float(stamp), interface, int(frame_id, 16), bytes.fromhex(data)))
+    return frames
+
+
+def gapless(values, modulus, what, start=None):
+    if not check(values, f"no {what} on the bus"):
+        return
+    if start is not None:
+        check(values[0] == start, f"{what} starts at {values[0]}, not {start}")
+    for i, (a, b) in enumerate(zip(values, values[1:])):
+        if not check(b == (a + 1) % modulus, f"{what} jumps from {a} to {b} (frame {i + 1} of them)"):
+            return
+
+
+def check_capture(out, db, report, summary):
+    capture = out / "vcan" / "candump.log"
+    frames = read_candump(capture)
+    with capture.open(encoding="ascii") as f:
+        entries = [e for e in Parser(f) if e is not None]
+    check(len(entries) == len(frames), f"cantools read {len(entries)} frames of {len(frames)} lines")
+    check(all(f[1] == "vcan0" for f in frames), "a frame on another interface than vcan0")
+    check(all(a[0] <= b[0] for a, b in zip(frames, frames[1:])), "capture stamps go back in time")
+
+    signals = {}
+    for i, entry in enumerate(entries):
+        try:
+            message = db.get_message_by_frame_id(entry.frame_id)
+            decoded = message.decode(bytes(entry.data), decode_choices=False)
+        except Exception as error:  # noqa: BLE001 -- any decoding failure is the finding
+            check(False, f"frame {i} ({entry.frame_id:#x}#{bytes(entry.data).hex()}) does not decode: {error}")
+            continue
+        signals.setdefault(message.name, []).append(decoded)
+
+    periods = report["periods"]["planned"]
+    for name, signal, modulus in [("CoilCommand", "Seq", 1 << 16), ("Step", "Step", 1 << 32),
+                                  ("AngleReading", "Seq", 1 << 16)]:
+        values = [s[signal] for s in signals.get(name, [])]
+        check(len(values) == periods, f"{len(values)} {name} frames for {periods} periods")
+        gapless(values, modulus, f"{name}.{signal}", start=0)
+    counters = [s["IldCounter"] for s in signals.get("Distance", [])]
+    gapless(counters, 1 << 18, "Distance.IldCounter")
+    sent = summary["sensor"]["samples"]
+    check(len(counters) == sent, f"{len(counters)} Distance frames on the bus, the emulator sent {sent}")
+    last = entries[-1] if entries else None
+    last_is_ready = (last is not None and db.get_message_by_frame_id(last.frame_id).name == "StatusFsm"
+                     and signals["StatusFsm"][-1]["State"] == 1)
+    check(last_is_ready, "the capture does not end with the node's StatusFsm(ready)")
+    counts = ", ".join(f"{len(v)} {k}" for k, v in sorted(signals.items()))
+    print(f"vcan_loop_check: capture: {len(frames)} frames on vcan0 decode with the DBC ({counts})")
+
+    recorded = read_candump(out / "vcan" / "fsm.log")
+    # The controller records a frame when it reads it, so the node's Distance frames of period k,
+    # on the bus before CoilCommand(k + 1), come after it in fsm.log: compare each sender's frames
+    # in order (each sender's frames reach the bus in the order sent).
+    for side, from_controller in [("controller", True), ("node", False)]:
+        def sent_by_side(log):
+            return [(f[2], f[3]) for f in log
+                    if ("Controller" in db.get_message_by_frame_id(f[2]).senders) == from_controller]
+        on_bus, in_record = sent_by_side(frames), sent_by_side(recorded)
+        check(on_bus == in_record,
+              f"the bus carried other {side} frames than the controller recorded ({len(on_bus)} vs {len(in_record)})")
+    check(len(frames) == len(recorded), f"{len(frames)} frames on the bus, {len(recorded)} in the controller's record")
+    span = frames[-1][0] - frames[0][0] if frames else 0.0
+    print(f"vcan_loop_check: capture: compared, sender by sender and in order, with the "
+          f"controller's fsm.log ({len(recorded)} frames; {span:.2f} s of wall clock on the bus for "
+          f"{recorded[-1][0] if recorded else 0:.6f} s of loop time)")
+
+
+def differences(a, b, path=()):
+    """JSON paths (tuples) where a and b differ."""
+    if isinstance(a, dict) and isinstance(b, dict):
+        for key in sorted(set(a) | set(b)):
+            yield from differences(a.get(key), b.get(key), path + (key,))
+    elif isinstance(a, list) and isinstance(b, list) and len(a) == len(b):
+        for i, (x, y) in enumerate(zip(a, b)):
+            yield from differences(x, y, path + (i,))
+    elif a != b or type(a) is not type(b):
+        yield path
+
+
+def check_run(name, report):
+    summary = report["emulator"]["summary"] if report.get("emulator") else None
+    check(report["outcome"].get("complete") is True, f"{name}: the scan did not complete: {report['outcome']}")
+    check(report["periods"]["done"] == report["periods"]["planned"], f"{name}: {report['periods']}")
+    mirror = report["links"]["mirror"]
+    check(mirror["angle_sequence_gaps"] == 0 and mirror["malformed_frames"] == 0 and mirror["foreign_frames"] == 0,
+          f"{name}: the controller saw gaps, malformed or foreign frames: {mirror}")
+    emulator = report.get("emulator") or {}
+    check(emulator.get("exit_status") == 0 and emulator.get("killed") is False and summary is not None,
+          f"{name}: the emulator did not finish by itself: exit {emulator.get('exit_status')}, "
+          f"killed {emulator.get('killed')}")
+    return summary or {"sensor": {"samples": -1}}
+
+
+def main():
+    if len(sys.argv) != 3:
+        print(__doc__, file=sys.stderr)
+        return 2
+    out, dbc = Path(sys.argv[1]), sys.argv[2]
+    db = cantools.database.load_file(dbc)
+    reports = {name: json.loads((out / name / "report.json").read_text()) for name in ["vcan", "pty-can", "pty-ild"]}
+    summaries = {name: check_run(name, report) for name, report in reports.items()}
+
+    check_capture(out, db, reports["vcan"], summaries["vcan"])
+
+    check((out / "vcan" / "fsm.log").read_bytes() == (out / "pty-can" / "fsm.log").read_bytes(),
+          "fsm.log differs between socketcan:vcan0 and the pty link")
+    for other, allowed in TRANSPORT_FIELDS.items():
+        for file in BYTE_IDENTICAL:
+            first = (out / "vcan" / file).read_bytes()
+            check(len(first) > 0, f"vcan/{file} is empty")
+            check(first == (out / other / file).read_bytes(), f"{file} differs between vcan and {other}")
+        found = list(differences(reports["vcan"], reports[other]))
+        unexpected = [p for p in found if not any(p[:len(a)] == a for a in allowed)]
+        check(not unexpected, f"report.json: vcan and {other} differ at {['/'.join(map(str, p)) for p in unexpected]}")
+        print(f"vcan_loop_check: vcan vs {other}: {', '.join(BYTE_IDENTICAL)} identical; report.json identical "
+              f"but for {sorted({'/'.join(map(str, p)) for p in found})}")
+    report = reports["vcan"]
+    feature = report.get("feature") or {}
+    print(f"vcan_loop_check: result: {report['samples']['points']} points, feature height "
+          f"{feature.get('height_mm')} mm (std {feature.get('std_mm')} mm), "
+          f"tracking rms alpha {report['tracking_error']['second_half']['alpha']['rms_urad']:.2f} urad")
+    print(f"vcan_loop_check: {passed} passed, {failed} failed")
+    return 1 if failed else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
