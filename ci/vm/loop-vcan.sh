@@ -82,6 +82,11 @@ host() {
     mkdir -p "$out"
     out=$(cd "$out" && pwd -P)
     [[ $out == "$repo"/* ]] || ((direct)) || fail "OUT_DIR $out must lie inside $repo (the VM sees only the repository)"
+    if ((direct)); then
+        ip link show "$IFACE" >/dev/null 2>&1 ||
+            fail "--direct needs a $IFACE on this host: sudo modprobe vcan && sudo ip link add dev $IFACE type vcan && sudo ip link set up $IFACE"
+        command -v candump >/dev/null || fail "--direct needs candump on this host (Debian/Ubuntu: sudo apt-get install can-utils)"
+    fi
     rm -rf "$out/vcan" "$out/pty-can" "$out/pty-ild"
 
     local start=$EPOCHREALTIME
@@ -94,9 +99,6 @@ host() {
 
     start=$EPOCHREALTIME
     if ((direct)); then
-        ip link show "$IFACE" >/dev/null 2>&1 ||
-            fail "--direct needs a $IFACE on this host: sudo modprobe vcan && sudo ip link add dev $IFACE type vcan && sudo ip link set up $IFACE"
-        command -v candump >/dev/null || fail "--direct needs candump (can-utils) on this host"
         (on_bus "$out" "$scanhil" "$emulator") || fail "the run on this host's $IFACE failed (exit status $?)"
     else
         local share=${SCANHIL_VM_SHARE:-}
