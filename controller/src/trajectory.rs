@@ -5,55 +5,9 @@
 //! (27 Hz). Spacings are fractions of the image side along that axis; with a scan range in mm
 //! they are also given in mm.
 
+pub use scanhil_protocol::plant_units::SensingAxis;
 use scanhil_protocol::plant_units::{FULL_RANGE_DEG, SensingPair};
 use std::f64::consts::{PI, TAU};
-
-/// One of the two sensing axes.
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
-)]
-#[serde(rename_all = "snake_case")]
-pub enum SensingAxis {
-    /// Tilt about x: the spot moves along y.
-    Alpha,
-    /// Tilt about yz': the spot moves along x.
-    Beta,
-}
-
-impl SensingAxis {
-    /// `value` on this axis, zero on the other.
-    #[must_use]
-    pub fn pair(self, value: f64) -> SensingPair {
-        match self {
-            SensingAxis::Alpha => SensingPair {
-                alpha: value,
-                beta: 0.0,
-            },
-            SensingAxis::Beta => SensingPair {
-                alpha: 0.0,
-                beta: value,
-            },
-        }
-    }
-
-    /// This axis' value of `pair`.
-    #[must_use]
-    pub fn of(self, pair: SensingPair) -> f64 {
-        match self {
-            SensingAxis::Alpha => pair.alpha,
-            SensingAxis::Beta => pair.beta,
-        }
-    }
-
-    /// The other axis.
-    #[must_use]
-    pub fn other(self) -> SensingAxis {
-        match self {
-            SensingAxis::Alpha => SensingAxis::Beta,
-            SensingAxis::Beta => SensingAxis::Alpha,
-        }
-    }
-}
 
 fn full_range_rad() -> f64 {
     FULL_RANGE_DEG.to_radians()

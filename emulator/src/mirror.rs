@@ -12,57 +12,8 @@
 
 use serde::{Deserialize, Serialize};
 
+pub use scanhil_protocol::plant_units::SensingAxis;
 use scanhil_protocol::plant_units::SensingPair;
-
-/// A sensing axis of the mirror.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum SensingAxis {
-    /// Tilt about x; moves the spot along y (the paper's 52 Hz axis).
-    #[serde(alias = "y")]
-    Alpha,
-    /// Tilt about the yz' axis; moves the spot along x (the paper's 27 Hz axis).
-    #[serde(alias = "x")]
-    Beta,
-}
-
-impl SensingAxis {
-    /// Both axes, alpha first.
-    pub const BOTH: [SensingAxis; 2] = [SensingAxis::Alpha, SensingAxis::Beta];
-
-    /// The axis's value in a pair.
-    #[must_use]
-    pub fn of(self, pair: SensingPair) -> f64 {
-        match self {
-            SensingAxis::Alpha => pair.alpha,
-            SensingAxis::Beta => pair.beta,
-        }
-    }
-
-    /// A pair that is `value` on this axis and zero on the other.
-    #[must_use]
-    pub fn pair(self, value: f64) -> SensingPair {
-        match self {
-            SensingAxis::Alpha => SensingPair {
-                alpha: value,
-                beta: 0.0,
-            },
-            SensingAxis::Beta => SensingPair {
-                alpha: 0.0,
-                beta: value,
-            },
-        }
-    }
-
-    /// The axis's name as written in scene files and output.
-    #[must_use]
-    pub fn name(self) -> &'static str {
-        match self {
-            SensingAxis::Alpha => "alpha",
-            SensingAxis::Beta => "beta",
-        }
-    }
-}
 
 /// The mirror's mechanics (eq. 4 without its delay) and which axes are simulated.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -169,13 +120,6 @@ mod tests {
         assert!((m.gain_at(0.0) - 11.4).abs() < 1e-12);
         let peak = m.gain_at(m.natural_freq_rad_s);
         assert!((peak - 11.4 / (2.0 * 3.21e-2)).abs() < 1e-9);
-    }
-
-    #[test]
-    fn axis_aliases_follow_the_spot_direction() {
-        let x: SensingAxis = serde_json::from_str("\"x\"").unwrap();
-        let y: SensingAxis = serde_json::from_str("\"y\"").unwrap();
-        assert_eq!((x, y), (SensingAxis::Beta, SensingAxis::Alpha));
     }
 
     #[test]

@@ -6,7 +6,8 @@
 //! - [`slcan`]: the SLCAN (Lawicel) line protocol: incremental decoder and encoder.
 //! - [`message`]: the CAN message set: ids, typed messages, the signal table (single source
 //!   of the layout).
-//! - [`plant_units`]: the mirror node's device contract: units, scalings, axis rotation.
+//! - [`plant_units`]: the mirror node's device contract: units, scalings, the sensing axes,
+//!   axis rotation (cargo feature `clap`: the axis as a command-line value).
 //! - [`bus_load`]: worst-case bits per frame and the load a message budget puts on a bus.
 //! - [`candump`]: candump `-L` log lines, reader and writer (classical and FD).
 //! - [`dbc`]: the DBC file rendered from the message table (`protocol/scanhil.dbc`).

@@ -42,6 +42,68 @@ pub struct SensingPair {
     pub beta: f64,
 }
 
+/// One of the two sensing axes. Files write it `alpha` or `beta`, or by the direction the spot
+/// moves: `y` (alpha) or `x` (beta). With the cargo feature `clap` it is also a command-line
+/// value (`alpha`, `beta`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "snake_case")]
+pub enum SensingAxis {
+    /// Tilt about x; moves the spot along y (the paper's 52 Hz axis).
+    #[serde(alias = "y")]
+    Alpha,
+    /// Tilt about the yz' axis; moves the spot along x (the paper's 27 Hz axis).
+    #[serde(alias = "x")]
+    Beta,
+}
+
+impl SensingAxis {
+    /// Both axes, alpha first.
+    pub const BOTH: [SensingAxis; 2] = [SensingAxis::Alpha, SensingAxis::Beta];
+
+    /// This axis' value of `pair`.
+    #[must_use]
+    pub fn of(self, pair: SensingPair) -> f64 {
+        match self {
+            SensingAxis::Alpha => pair.alpha,
+            SensingAxis::Beta => pair.beta,
+        }
+    }
+
+    /// A pair that is `value` on this axis and zero on the other.
+    #[must_use]
+    pub fn pair(self, value: f64) -> SensingPair {
+        match self {
+            SensingAxis::Alpha => SensingPair {
+                alpha: value,
+                beta: 0.0,
+            },
+            SensingAxis::Beta => SensingPair {
+                alpha: 0.0,
+                beta: value,
+            },
+        }
+    }
+
+    /// The other axis.
+    #[must_use]
+    pub fn other(self) -> SensingAxis {
+        match self {
+            SensingAxis::Alpha => SensingAxis::Beta,
+            SensingAxis::Beta => SensingAxis::Alpha,
+        }
+    }
+
+    /// The axis' name as written in files and output (`alpha`, `beta`).
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            SensingAxis::Alpha => "alpha",
+            SensingAxis::Beta => "beta",
+        }
+    }
+}
+
 /// A pair of values on the two actuator (coil) axes (`a`, `b`).
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct ActuatorPair {
@@ -95,5 +157,40 @@ mod tests {
         });
         assert!((pure_alpha.a - FRAC_1_SQRT_2).abs() < 1e-15);
         assert!((pure_alpha.b - FRAC_1_SQRT_2).abs() < 1e-15);
+    }
+
+    #[test]
+    fn axis_names_and_aliases_follow_the_spot_direction() {
+        let parse = |text: &str| serde_json::from_str::<SensingAxis>(text).unwrap();
+        assert_eq!(parse("\"alpha\""), SensingAxis::Alpha);
+        assert_eq!(parse("\"beta\""), SensingAxis::Beta);
+        assert_eq!(parse("\"y\""), SensingAxis::Alpha);
+        assert_eq!(parse("\"x\""), SensingAxis::Beta);
+        assert!(serde_json::from_str::<SensingAxis>("\"z\"").is_err());
+        for axis in SensingAxis::BOTH {
+            assert_eq!(
+                serde_json::to_string(&axis).unwrap(),
+                format!("\"{}\"", axis.name())
+            );
+        }
+    }
+
+    #[test]
+    fn axis_selects_and_builds_its_half_of_a_pair() {
+        let pair = SensingPair {
+            alpha: 2.0,
+            beta: -3.0,
+        };
+        assert_eq!(SensingAxis::Alpha.of(pair), 2.0);
+        assert_eq!(SensingAxis::Beta.of(pair), -3.0);
+        assert_eq!(
+            SensingAxis::Beta.pair(4.0),
+            SensingPair {
+                alpha: 0.0,
+                beta: 4.0
+            }
+        );
+        assert_eq!(SensingAxis::Alpha.other(), SensingAxis::Beta);
+        assert_eq!(SensingAxis::Beta.other(), SensingAxis::Alpha);
     }
 }
