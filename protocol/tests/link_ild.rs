@@ -1,14 +1,16 @@
 //! ILD links over real pty pairs: the value stream with arrival times, command/reply exchange
 //! (also in the middle of the stream), resynchronisation, timeouts, hang-up and raw capture.
 
-use std::io::{self, Write};
-use std::sync::{Arc, Mutex};
+mod support;
+
 use std::time::{Duration, Instant};
 
 use scanhil_protocol::ild::command::{IldCommand, IldCommandError, IldReply};
 use scanhil_protocol::ild::stream::encode_cycle;
 use scanhil_protocol::ild::{IldError, IldValue};
 use scanhil_protocol::link::{ByteCapture, IldLink, LinkError, LinkUri, PtyPair, Role, SerialLine};
+
+use support::SharedBuffer;
 
 const REPLY_WAIT: Duration = Duration::from_secs(2);
 
@@ -238,25 +240,11 @@ async fn the_host_sees_the_sensor_hang_up() {
     assert!(error.to_string().starts_with("ild:/dev/pts/"), "{error}");
 }
 
-/// A writer whose bytes the test reads back.
-#[derive(Clone, Default)]
-struct Shared(Arc<Mutex<Vec<u8>>>);
-
-impl Write for Shared {
-    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        self.0.lock().unwrap().extend_from_slice(buf);
-        Ok(buf.len())
-    }
-    fn flush(&mut self) -> io::Result<()> {
-        Ok(())
-    }
-}
-
 #[tokio::test]
 async fn the_raw_capture_holds_exactly_the_bytes_that_crossed() {
     let (mut host, mut device) = host_and_device();
-    let received = Shared::default();
-    let sent = Shared::default();
+    let received = SharedBuffer::default();
+    let sent = SharedBuffer::default();
     host.set_capture(ByteCapture::new(received.clone()).with_sent(sent.clone()));
     let mut expected = Vec::new();
     for k in 0..50u32 {
@@ -271,10 +259,10 @@ async fn the_raw_capture_holds_exactly_the_bytes_that_crossed() {
         answer_one(&mut device, false)
     );
     reply.unwrap();
-    let received = received.0.lock().unwrap().clone();
+    let received = received.bytes();
     assert_eq!(&received[..expected.len()], &expected[..]);
     assert!(received.ends_with(b"->"));
-    assert_eq!(sent.0.lock().unwrap().as_slice(), b"GETINFO\r");
+    assert_eq!(sent.bytes().as_slice(), b"GETINFO\r");
 }
 
 /// The controller's default set-up: host on the master, the emulated sensor opens the slave

@@ -1,9 +1,9 @@
 //! SLCAN links over real pty pairs: host and device ends exchanging frames both ways, garbage
 //! and resynchronisation, bit-rate commands, close and reopen, timeouts, hang-up, capture.
 
+mod support;
+
 use std::future::Future;
-use std::io::{self, Write};
-use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use scanhil_protocol::can::{CanFrame, CanId};
@@ -13,6 +13,8 @@ use scanhil_protocol::link::{
     CanCapture, CanLink, CaptureClock, LinkError, LinkUri, PtyPair, RecvError, Role, SerialLine,
     VirtualClock, Watchdog,
 };
+
+use support::SharedBuffer;
 
 fn std_frame(id: u16, data: &[u8]) -> CanFrame {
     CanFrame::new(CanId::standard(id).unwrap(), data).unwrap()
@@ -322,24 +324,10 @@ async fn opening_a_missing_or_non_serial_path_names_it_and_the_os_error() {
     assert!(text.contains("300000") && text.contains("S0..S8"), "{text}");
 }
 
-/// A writer whose bytes the test reads back.
-#[derive(Clone, Default)]
-struct Shared(Arc<Mutex<Vec<u8>>>);
-
-impl Write for Shared {
-    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        self.0.lock().unwrap().extend_from_slice(buf);
-        Ok(buf.len())
-    }
-    fn flush(&mut self) -> io::Result<()> {
-        Ok(())
-    }
-}
-
 #[tokio::test]
 async fn the_capture_records_every_frame_as_a_candump_line_in_order() {
     let (mut host, mut device) = host_and_device("").await;
-    let log = Shared::default();
+    let log = SharedBuffer::default();
     let clock = VirtualClock::default();
     host.set_capture(CanCapture::new(
         log.clone(),
@@ -354,7 +342,7 @@ async fn the_capture_records_every_frame_as_a_candump_line_in_order() {
         device.send(frame).await.unwrap();
         host.recv().await.unwrap();
     }
-    let text = String::from_utf8(log.0.lock().unwrap().clone()).unwrap();
+    let text = String::from_utf8(log.bytes()).unwrap();
     let entries: Vec<_> = text
         .lines()
         .map(|line| candump::parse_line(line).unwrap())

@@ -4,11 +4,12 @@
 //! they fail: nothing is skipped.
 #![cfg(feature = "vcan")]
 
+mod support;
+
 mod vcan {
-    use std::io::{self, Write};
-    use std::sync::{Arc, Mutex};
     use std::time::{Duration, Instant};
 
+    use super::support::SharedBuffer;
     use scanhil_protocol::can::{CanFrame, CanId};
     use scanhil_protocol::candump;
     use scanhil_protocol::link::{
@@ -80,25 +81,11 @@ mod vcan {
         assert!(timeout.to_string().contains("socketcan:vcan0"), "{timeout}");
     }
 
-    /// A writer whose bytes the test reads back.
-    #[derive(Clone, Default)]
-    struct Shared(Arc<Mutex<Vec<u8>>>);
-
-    impl Write for Shared {
-        fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-            self.0.lock().unwrap().extend_from_slice(buf);
-            Ok(buf.len())
-        }
-        fn flush(&mut self) -> io::Result<()> {
-            Ok(())
-        }
-    }
-
     #[tokio::test]
     async fn vcan_capture_writes_candump_lines() {
         let _bus = BUS.lock().await;
         let (mut a, mut b) = two_nodes().await;
-        let log = Shared::default();
+        let log = SharedBuffer::default();
         let clock = VirtualClock::default();
         b.set_capture(CanCapture::new(
             log.clone(),
@@ -110,7 +97,7 @@ mod vcan {
             a.send(frame).await.unwrap();
             b.recv().await.unwrap();
         }
-        let text = String::from_utf8(log.0.lock().unwrap().clone()).unwrap();
+        let text = String::from_utf8(log.bytes()).unwrap();
         let logged: Vec<CanFrame> = text
             .lines()
             .map(|line| candump::parse_line(line).unwrap().frame)

@@ -152,36 +152,3 @@ impl ByteCapture {
         }
     }
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::can::CanId;
-    use std::sync::Mutex;
-
-    /// A writer whose bytes the test can read back.
-    #[derive(Clone, Default)]
-    struct Shared(Arc<Mutex<Vec<u8>>>);
-
-    impl Write for Shared {
-        fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-            self.0.lock().unwrap().extend_from_slice(buf);
-            Ok(buf.len())
-        }
-        fn flush(&mut self) -> io::Result<()> {
-            Ok(())
-        }
-    }
-
-    #[test]
-    fn can_capture_writes_candump_lines_at_virtual_time() {
-        let out = Shared::default();
-        let clock = VirtualClock::default();
-        let mut capture = CanCapture::new(out.clone(), "fsm", CaptureClock::Virtual(clock.clone()));
-        let frame = CanFrame::new(CanId::standard(0x110).unwrap(), &[0xDE, 0xAD]).unwrap();
-        clock.set(Duration::from_micros(1_000_050));
-        capture.record(&frame).unwrap();
-        let text = String::from_utf8(out.0.lock().unwrap().clone()).unwrap();
-        assert_eq!(text, "(1.000050) fsm 110#DEAD\n");
-    }
-}
