@@ -1,22 +1,10 @@
 //! The `step` and `precision` commands as a user runs them: output, JSON shape, and errors.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod support;
 
-fn emulator(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_scanhil-emulator"))
-        .args(args)
-        .output()
-        .expect("run scanhil-emulator")
-}
+use std::path::PathBuf;
 
-fn fixture(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../fixtures/scenes")
-        .join(name)
-        .display()
-        .to_string()
-}
+use support::{emulator, fixture};
 
 fn temp_path(name: &str) -> PathBuf {
     std::env::temp_dir().join(format!(

@@ -1,22 +1,8 @@
 //! The `probe` command as a user runs it: JSON shape, and errors that name what is wrong.
 
-use std::path::Path;
-use std::process::{Command, Output};
+mod support;
 
-fn emulator(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_scanhil-emulator"))
-        .args(args)
-        .output()
-        .expect("run scanhil-emulator")
-}
-
-fn fixture(name: &str) -> String {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../fixtures/scenes")
-        .join(name)
-        .display()
-        .to_string()
-}
+use support::{emulator, fixture};
 
 #[test]
 fn probe_json_on_the_plane_reports_spot_truth_and_raw_value() {
