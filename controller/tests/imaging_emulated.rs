@@ -4,7 +4,7 @@ mod imaging_support;
 
 use std::path::PathBuf;
 
-use imaging_support::{STUD_HEIGHT_MM, lissajous, raster};
+use imaging_support::{STUD_HEIGHT_MM, lissajous, raster, scanhil_reconstruct};
 use scanhil_controller::imaging::emulated::EmulatedScanner;
 use scanhil_controller::imaging::feature::FeatureParams;
 use scanhil_controller::imaging::pipeline::{ImagingOptions, ImagingReport, image_samples};
@@ -67,13 +67,7 @@ fn scanhil_reconstruct_scores_a_recording_against_its_scene() {
     let input = dir.path().join("rec.csv");
     write_recording_csv(std::fs::File::create(&input).unwrap(), &samples).unwrap();
     let out = dir.path().join("out");
-    let run = std::process::Command::new(env!("CARGO_BIN_EXE_scanhil"))
-        .args([
-            "reconstruct",
-            input.to_str().unwrap(),
-            "--out-dir",
-            out.to_str().unwrap(),
-        ])
+    let run = scanhil_reconstruct(&input, &out)
         .args([
             "--model",
             "exact-reflection",

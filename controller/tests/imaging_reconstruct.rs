@@ -3,7 +3,9 @@
 
 mod imaging_support;
 
-use imaging_support::{BASE_Z_MM, FULL_RANGE_RAD, STUD_HEIGHT_MM, lissajous, raster, stud_scene};
+use imaging_support::{
+    BASE_Z_MM, FULL_RANGE_RAD, STUD_HEIGHT_MM, lissajous, raster, scanhil_reconstruct, stud_scene,
+};
 use scanhil_controller::imaging::feature::FeatureParams;
 use scanhil_controller::imaging::pipeline::{ImagingOptions, ImagingReport, image_samples};
 use scanhil_controller::imaging::ply::read_ply_file;
@@ -186,13 +188,7 @@ fn scanhil_reconstruct_writes_ply_png_csv_and_report() {
     samples[7].z_meas_mm = None;
     write_recording_csv(std::fs::File::create(&input).unwrap(), &samples).unwrap();
     let out = dir.path().join("out");
-    let run = std::process::Command::new(env!("CARGO_BIN_EXE_scanhil"))
-        .args([
-            "reconstruct",
-            input.to_str().unwrap(),
-            "--out-dir",
-            out.to_str().unwrap(),
-        ])
+    let run = scanhil_reconstruct(&input, &out)
         .args([
             "--feature-height",
             "--subtract-plane",
@@ -238,15 +234,7 @@ fn scanhil_reconstruct_writes_ply_png_csv_and_report() {
 
     // A bad recording: non-zero exit, the file and line named.
     std::fs::write(&input, "t_s,d_alpha_rad,d_beta_rad,z_meas_mm\n0,0,0,abc\n").unwrap();
-    let run = std::process::Command::new(env!("CARGO_BIN_EXE_scanhil"))
-        .args([
-            "reconstruct",
-            input.to_str().unwrap(),
-            "--out-dir",
-            out.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
+    let run = scanhil_reconstruct(&input, &out).output().unwrap();
     assert!(!run.status.success());
     let stderr = String::from_utf8_lossy(&run.stderr);
     assert!(

@@ -1,9 +1,13 @@
-//! Shared by the imaging tests: the paper's trajectories as angle functions and a Duplo-like
-//! stud scene with a known surface.
+//! Shared by the imaging tests: the paper's trajectories as angle functions, a Duplo-like
+//! stud scene with a known surface, and the `scanhil reconstruct` command.
 
 #![allow(dead_code)]
 
+use std::path::Path;
+use std::process::Command;
+
 use scanhil_controller::imaging::progressive::HeightFieldScene;
+use scanhil_controller::trajectory::{SensingAxis, Trajectory};
 use scanhil_geometry::{GeometryModel, Scanner};
 
 /// The mechanical full range, rad (1.5 deg).
@@ -16,30 +20,34 @@ pub const STUD_HEIGHT_MM: f64 = 4.663;
 /// Mirror deflections `(d_alpha, d_beta)` in rad against time in s.
 pub type Angles = fn(f64) -> (f64, f64);
 
-/// Lissajous 27 Hz on d_beta (x), 52 Hz on d_alpha (y), zero phase, full range.
-pub fn lissajous(t: f64) -> (f64, f64) {
-    let w = 2.0 * std::f64::consts::PI;
-    (
-        FULL_RANGE_RAD * (w * 52.0 * t).sin(),
-        FULL_RANGE_RAD * (w * 27.0 * t).sin(),
-    )
+/// `trajectory`'s `(d_alpha, d_beta)` at `t` s.
+fn angles(trajectory: &Trajectory, t: f64) -> (f64, f64) {
+    let reference = trajectory.reference_rad(t);
+    (reference.alpha, reference.beta)
 }
 
-fn triangle(f_hz: f64, t: f64) -> f64 {
-    let phase = (f_hz * t).rem_euclid(1.0);
-    if phase < 0.5 {
-        4.0 * phase - 1.0
-    } else {
-        3.0 - 4.0 * phase
-    }
+/// Lissajous 27 Hz on d_beta (x), 52 Hz on d_alpha (y), zero phase, full range.
+pub fn lissajous(t: f64) -> (f64, f64) {
+    let lissajous = Trajectory::Lissajous {
+        alpha_hz: 52.0,
+        beta_hz: 27.0,
+        alpha_amplitude_rad: FULL_RANGE_RAD,
+        beta_amplitude_rad: FULL_RANGE_RAD,
+        relative_phase_rad: 0.0,
+    };
+    angles(&lissajous, t)
 }
 
 /// Raster: 2 Hz slow triangle on d_alpha (y), 34 Hz fast triangle on d_beta (x).
 pub fn raster(t: f64) -> (f64, f64) {
-    (
-        FULL_RANGE_RAD * triangle(2.0, t),
-        FULL_RANGE_RAD * triangle(34.0, t),
-    )
+    let raster = Trajectory::Raster {
+        slow_hz: 2.0,
+        fast_hz: 34.0,
+        slow_axis: SensingAxis::Alpha,
+        alpha_amplitude_rad: FULL_RANGE_RAD,
+        beta_amplitude_rad: FULL_RANGE_RAD,
+    };
+    angles(&raster, t)
 }
 
 /// Where the undeflected beam meets the brick top.
@@ -71,4 +79,16 @@ pub fn stud_scene(model: GeometryModel) -> HeightFieldScene<impl Fn(f64, f64) ->
         surface: stud_surface(),
         range_mm: (70.0, 170.0),
     }
+}
+
+/// `scanhil reconstruct <input> --out-dir <out_dir>`, ready for more arguments.
+pub fn scanhil_reconstruct(input: &Path, out_dir: &Path) -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_scanhil"));
+    command.args([
+        "reconstruct",
+        input.to_str().unwrap(),
+        "--out-dir",
+        out_dir.to_str().unwrap(),
+    ]);
+    command
 }
