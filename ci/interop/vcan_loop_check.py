@@ -32,15 +32,19 @@ Checks:
      frames travel on the mirror's link on CAN, on their own line with ILD). There are no
      wall-clock fields in a lockstep report (timing.controller and timing.emulator are null,
      and are compared as such).
-4. Both runs ended cleanly: complete, every period done, no sequence gap or malformed frame seen by
+4. The sensor's data is the same on both of its transports: the (IldRaw, IldCounter) pairs of the
+   Distance frames on vcan0 equal the (value, counter) output cycles of pty-ild/sensor.ild, the
+   raw ILD RS422 stream, as `scanhil decode --format ild` reads it.
+5. Both runs ended cleanly: complete, every period done, no sequence gap or malformed frame seen by
    the controller, the emulator finished by itself (exit status 0, not killed) on every transport.
 
-Usage: vcan_loop_check.py OUT DBC
+Usage: vcan_loop_check.py OUT DBC SCANHIL_BINARY
 Prints one line per failed check and a summary; exit status 1 on any failure.
 """
 
 import json
 import re
+import subprocess
 import sys
 from pathlib import Path
 
@@ -120,7 +124,8 @@ def check_capture(out, db, report, summary):
         values = [s[signal] for s in signals.get(name, [])]
         check(len(values) == periods, f"{len(values)} {name} frames for {periods} periods")
         gapless(values, modulus, f"{name}.{signal}", start=0)
-    counters = [s["IldCounter"] for s in signals.get("Distance", [])]
+    distances = [(s["IldRaw"], s["IldCounter"]) for s in signals.get("Distance", [])]
+    counters = [counter for _, counter in distances]
     gapless(counters, 1 << 18, "Distance.IldCounter")
     sent = summary["sensor"]["samples"]
     check(len(counters) == sent, f"{len(counters)} Distance frames on the bus, the emulator sent {sent}")
@@ -147,6 +152,21 @@ def check_capture(out, db, report, summary):
     print(f"vcan_loop_check: capture: compared, sender by sender and in order, with the "
           f"controller's fsm.log ({len(recorded)} frames; {span:.2f} s of wall clock on the bus for "
           f"{recorded[-1][0] if recorded else 0:.6f} s of loop time)")
+    return distances
+
+
+def check_ild_stream(scanhil, capture, distances):
+    """The ILD stream's (value, counter) cycles against the Distance frames' (IldRaw, IldCounter)."""
+    result = subprocess.run([scanhil, "decode", str(capture), "--format", "ild"],
+                            capture_output=True, text=True, check=False)
+    if not check(result.returncode == 0, f"scanhil decode --format ild {capture}: {result.stderr.strip()}"):
+        return
+    words = [json.loads(line) for line in result.stdout.splitlines()]
+    check(all(w["index"] == i % 2 for i, w in enumerate(words)) and len(words) % 2 == 0,
+          f"{capture}: the cycles are not (value, counter) pairs")
+    cycles = [(words[i]["raw"], words[i + 1]["raw"]) for i in range(0, len(words) - 1, 2)]
+    check(cycles == distances, f"{capture}: {len(cycles)} ILD cycles differ from the {len(distances)} Distance frames on vcan0")
+    print(f"vcan_loop_check: sensor: the {len(cycles)} (value, counter) cycles of the ILD stream equal the Distance frames on vcan0")
 
 
 def differences(a, b, path=()):
@@ -176,15 +196,16 @@ def check_run(name, report):
 
 
 def main():
-    if len(sys.argv) != 3:
+    if len(sys.argv) != 4:
         print(__doc__, file=sys.stderr)
         return 2
-    out, dbc = Path(sys.argv[1]), sys.argv[2]
+    out, dbc, scanhil = Path(sys.argv[1]), sys.argv[2], sys.argv[3]
     db = cantools.database.load_file(dbc)
     reports = {name: json.loads((out / name / "report.json").read_text()) for name in ["vcan", "pty-can", "pty-ild"]}
     summaries = {name: check_run(name, report) for name, report in reports.items()}
 
-    check_capture(out, db, reports["vcan"], summaries["vcan"])
+    distances = check_capture(out, db, reports["vcan"], summaries["vcan"])
+    check_ild_stream(scanhil, out / "pty-ild" / "sensor.ild", distances)
 
     check((out / "vcan" / "fsm.log").read_bytes() == (out / "pty-can" / "fsm.log").read_bytes(),
           "fsm.log differs between socketcan:vcan0 and the pty link")
