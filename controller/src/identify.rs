@@ -86,7 +86,17 @@ struct Exciter<'a> {
     measured: SensingPair,
 }
 
-impl Exciter<'_> {
+impl<'a> Exciter<'a> {
+    /// Excites `axis` through `link`, starting from a zero measurement.
+    fn new(link: &'a mut dyn PlantLink, target: &'a mut Target, axis: SensingAxis) -> Self {
+        Exciter {
+            link,
+            target,
+            axis,
+            measured: SensingPair::default(),
+        }
+    }
+
     /// Applies `excitation` for one period; returns this period's measured response on the
     /// excited and on the other axis (paper output units open loop, rad closed loop).
     fn period(&mut self, excitation: f64) -> Result<(f64, f64), LinkError> {
@@ -144,12 +154,7 @@ pub fn identify(
     target: &mut Target,
 ) -> Result<Vec<ResponsePoint>, LinkError> {
     let period_s = link.period_s();
-    let mut exciter = Exciter {
-        link,
-        target,
-        axis: plan.axis,
-        measured: SensingPair::default(),
-    };
+    let mut exciter = Exciter::new(link, target, plan.axis);
     let mut points = Vec::with_capacity(plan.frequencies_hz.len());
     for &requested in &plan.frequencies_hz {
         let cycles = f64::from(plan.cycles_per_block);
@@ -213,12 +218,7 @@ pub fn identify_swept(
     target: &mut Target,
 ) -> Result<Vec<ResponsePoint>, LinkError> {
     let period_s = link.period_s();
-    let mut exciter = Exciter {
-        link,
-        target,
-        axis: plan.axis,
-        measured: SensingPair::default(),
-    };
+    let mut exciter = Exciter::new(link, target, plan.axis);
     let sweep_len = (plan.sweep_s / period_s).round() as usize;
     let record_len = sweep_len + (plan.quiet_s / period_s).round() as usize;
     let mut sums: Vec<SpectralSums> = plan
