@@ -147,17 +147,9 @@ fn ild_stream_and_commands() {
         .map(|&mm| (format!("{mm} mm"), range.mm_to_digital(mm).unwrap()))
         .collect();
     values.extend(
-        [
-            IldError::TooMuchData,
-            IldError::NoPeak,
-            IldError::PeakBeforeRange,
-            IldError::PeakAfterRange,
-            IldError::CannotEvaluate,
-            IldError::PeakTooWide,
-            IldError::LaserOff,
-        ]
-        .iter()
-        .map(|e| (e.name().to_owned(), IldValue::Error(*e).raw())),
+        IldError::KNOWN
+            .iter()
+            .map(|e| (e.name().to_owned(), IldValue::Error(*e).raw())),
     );
     for (name, raw) in values {
         let _ = writeln!(

@@ -93,7 +93,8 @@ pub enum IldError {
 pub const ERROR_CODE_FIRST: u32 = 262_075;
 
 impl IldError {
-    const KNOWN: [IldError; 7] = [
+    /// The errors the sensor names, in the order of their codes from [`ERROR_CODE_FIRST`].
+    pub const KNOWN: [IldError; 7] = [
         IldError::TooMuchData,
         IldError::NoPeak,
         IldError::PeakBeforeRange,
