@@ -4,10 +4,12 @@ mod imaging_support;
 
 use std::path::PathBuf;
 
-use imaging_support::{STUD_HEIGHT_MM, lissajous, raster, scanhil_reconstruct};
+use imaging_support::{
+    STUD_HEIGHT_MM, lissajous, raster, reconstruct_succeeds, scanhil_reconstruct,
+};
 use scanhil_controller::imaging::emulated::EmulatedScanner;
 use scanhil_controller::imaging::feature::FeatureParams;
-use scanhil_controller::imaging::pipeline::{ImagingOptions, ImagingReport, image_samples};
+use scanhil_controller::imaging::pipeline::{ImagingOptions, image_samples};
 use scanhil_controller::imaging::progressive::ScanScene;
 use scanhil_controller::imaging::recording::write_recording_csv;
 
@@ -67,26 +69,19 @@ fn scanhil_reconstruct_scores_a_recording_against_its_scene() {
     let input = dir.path().join("rec.csv");
     write_recording_csv(std::fs::File::create(&input).unwrap(), &samples).unwrap();
     let out = dir.path().join("out");
-    let run = scanhil_reconstruct(&input, &out)
-        .args([
-            "--model",
-            "exact-reflection",
-            "--pitch-mm",
-            "0.3",
-            "--truth-scene",
-        ])
-        .arg(&path)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(
-        run.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&run.stderr)
+    let (stdout, report) = reconstruct_succeeds(
+        scanhil_reconstruct(&input, &out)
+            .args([
+                "--model",
+                "exact-reflection",
+                "--pitch-mm",
+                "0.3",
+                "--truth-scene",
+            ])
+            .arg(&path),
+        &out,
     );
     assert!(stdout.contains("against the true surface"), "{stdout}");
-    let report: ImagingReport =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     let e = report.truth_error.unwrap();
     // A plane: only the sensor's 1.5 um noise and 1.6 um digits remain (exact model).
     assert!(e.covered_rms_mm.unwrap() < 0.005, "{e:?}");

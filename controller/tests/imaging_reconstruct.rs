@@ -4,10 +4,11 @@
 mod imaging_support;
 
 use imaging_support::{
-    BASE_Z_MM, FULL_RANGE_RAD, STUD_HEIGHT_MM, lissajous, raster, scanhil_reconstruct, stud_scene,
+    BASE_Z_MM, FULL_RANGE_RAD, STUD_HEIGHT_MM, lissajous, raster, reconstruct_succeeds,
+    scanhil_reconstruct, stud_scene,
 };
 use scanhil_controller::imaging::feature::FeatureParams;
-use scanhil_controller::imaging::pipeline::{ImagingOptions, ImagingReport, image_samples};
+use scanhil_controller::imaging::pipeline::{ImagingOptions, image_samples};
 use scanhil_controller::imaging::ply::read_ply_file;
 use scanhil_controller::imaging::progressive::simulate_samples;
 use scanhil_controller::imaging::reconstruct::{DEFAULT_MODEL, ScanSample, reconstruct};
@@ -188,26 +189,18 @@ fn scanhil_reconstruct_writes_ply_png_csv_and_report() {
     samples[7].z_meas_mm = None;
     write_recording_csv(std::fs::File::create(&input).unwrap(), &samples).unwrap();
     let out = dir.path().join("out");
-    let run = scanhil_reconstruct(&input, &out)
-        .args([
+    let (stdout, report) = reconstruct_succeeds(
+        scanhil_reconstruct(&input, &out).args([
             "--feature-height",
             "--subtract-plane",
             "--fill",
             "nearest",
             "--pitch-mm",
             "0.2",
-        ])
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(
-        run.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&run.stderr)
+        ]),
+        &out,
     );
     assert!(stdout.contains("feature height 4.66"), "{stdout}");
-    let report: ImagingReport =
-        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
     assert_eq!(report.model, "small_angle");
     assert_eq!(report.samples, samples.len());
     assert_eq!(

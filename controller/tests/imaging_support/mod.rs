@@ -6,6 +6,8 @@
 use std::path::Path;
 use std::process::Command;
 
+use scanhil_controller::imaging::pipeline::ImagingReport;
+
 use scanhil_controller::imaging::progressive::HeightFieldScene;
 use scanhil_controller::trajectory::{SensingAxis, Trajectory};
 use scanhil_geometry::{GeometryModel, Scanner};
@@ -91,4 +93,18 @@ pub fn scanhil_reconstruct(input: &Path, out_dir: &Path) -> Command {
         out_dir.to_str().unwrap(),
     ]);
     command
+}
+
+/// Runs a `scanhil reconstruct` command that must succeed (it fails the test with the
+/// command's output otherwise): its stdout and the `report.json` it wrote into `out_dir`.
+pub fn reconstruct_succeeds(command: &mut Command, out_dir: &Path) -> (String, ImagingReport) {
+    let run = command.output().unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
+    assert!(
+        run.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let report = std::fs::read_to_string(out_dir.join("report.json")).unwrap();
+    (stdout, serde_json::from_str(&report).unwrap())
 }
