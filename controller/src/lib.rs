@@ -21,8 +21,11 @@
 //! - [`identify`]: stepped-sine frequency response with coherence.
 //! - [`accuracy`]: tone placement and tracking error per discretisation method.
 //!
-//! The loop and imaging: [`run`] (scans over real links), [`imaging`] (reconstruction,
-//! gridding, RANSAC, progressive imaging).
+//! The loop and imaging:
+//! - [`run`]: the loop runner behind `scanhil scan`: scenarios, the links to both nodes,
+//!   lockstep and real-time loops, pairing distances with angles, the output folder.
+//! - [`imaging`]: reconstruction, recordings, PLY, gridding, filling, RANSAC, feature height,
+//!   progressive imaging.
 
 pub mod accuracy;
 pub mod continuous;
