@@ -1,7 +1,11 @@
-//! Helpers shared by the link tests.
+//! Helpers shared by the link tests (each test binary uses the part it needs).
+#![allow(dead_code)]
 
 use std::io::{self, Write};
 use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use scanhil_protocol::link::CanLink;
 
 /// A writer whose bytes the test reads back: clones share one buffer, so a capture can own
 /// one clone while the test keeps another.
@@ -23,4 +27,13 @@ impl Write for SharedBuffer {
     fn flush(&mut self) -> io::Result<()> {
         Ok(())
     }
+}
+
+/// Asserts that `link` receives nothing within `wait`, that the wait lasted at least `wait`,
+/// and that nothing is queued afterwards.
+pub async fn assert_nothing_arrives(link: &mut CanLink, wait: Duration) {
+    let started = Instant::now();
+    assert!(link.recv_timeout(wait).await.unwrap().is_none());
+    assert!(started.elapsed() >= wait);
+    assert!(link.try_recv().unwrap().is_none());
 }
