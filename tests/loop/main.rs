@@ -11,6 +11,8 @@ mod emulator_watchdog;
 mod scan_result;
 // Lockstep determinism: the same seed twice gives bit-identical recordings and reports.
 mod determinism;
+// The sensor's samples on CAN or on the ILD stream: the same scan, the last period included.
+mod sensor_transports;
 // The controller's watchdog: a frozen or killed emulator stops the scan with a link timeout.
 mod controller_watchdog;
 // Conformance checks against the emulator, with JUnit XML.
