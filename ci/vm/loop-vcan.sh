@@ -13,10 +13,11 @@
 #    default links, SLCAN plus the sensor's own ILD stream (OUT_DIR/pty-ild/).
 # 4. ci/interop/vcan_loop_check.py (the .venv of ci/interop/venv.sh: cantools): every frame of
 #    the capture decodes with protocol/scanhil.dbc, the sequence counters are gapless, the bus
-#    carried exactly the controller's recorded frames, and the results of the three runs are
-#    bit-identical (that script's doc says which files and fields, and why).
+#    carried exactly the controller's recorded frames, the ILD stream carried the same sensor
+#    samples as the Distance frames, and the results of the three runs are bit-identical (that
+#    script's doc says which files and fields, and why).
 #
-# OUT_DIR defaults to out/vcan (gitignored); it is emptied first. Exit status 0 when every check
+# OUT_DIR defaults to out/vcan (gitignored); its vcan/, pty-can/ and pty-ild/ are removed first. Exit status 0 when every check
 # passed; the script prints how long each part took.
 set -euo pipefail
 
