@@ -6,7 +6,7 @@
 //! - [`role`]: which end of a link this program is (host or device).
 //! - [`error`]: [`LinkError`], naming the link and the OS error.
 //! - [`pty`]: pty pairs, a serial line between two programs on one machine.
-//! - [`line`]: an async byte line over a serial port or pty (what SLCAN and ILD run on).
+//! - [`line`](mod@line): an async byte line over a serial port or pty (what SLCAN and ILD run on).
 //! - [`socketcan`]: a kernel SocketCAN interface.
 //! - [`slcan`]: SLCAN over a line, host (drives an adapter) and device (acts as one).
 //! - [`can`]: [`CanLink`], one CAN link over either transport: send, receive, timeouts.
