@@ -18,6 +18,11 @@ fn a_realtime_scan_reports_jitter_on_both_sides() {
     ]);
     // A loaded machine may miss deadlines: the scan may stop, but it reports either way.
     assert!(output.status.code().is_some(), "scanhil ended by a signal");
+    assert!(
+        out.path().join("report.json").is_file(),
+        "no report; stderr:\n{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
     let report = report(out.path());
     for side in [
         "/timing/controller/reading_interval",

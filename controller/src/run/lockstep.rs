@@ -32,6 +32,9 @@ pub struct LoopRecord {
     pub stopped_by: Option<LoopError>,
     /// Real time only: the controller's side of the timing.
     pub controller_timing: Option<ControllerTiming>,
+    /// Real time only: the instant of loop time 0 as seen here (the earliest reading's
+    /// arrival minus its loop time), to place a real sensor's samples on the loop's time axis.
+    pub loop_epoch: Option<tokio::time::Instant>,
 }
 
 impl LoopRecord {
@@ -46,6 +49,7 @@ impl LoopRecord {
             saturated_periods: 0,
             stopped_by: None,
             controller_timing: None,
+            loop_epoch: None,
         }
     }
 

@@ -86,7 +86,7 @@ pub struct MirrorLink {
     answer_allowance: Duration,
     watchdog_periods: u32,
     events: Vec<NodeEvent>,
-    distances: Vec<(u32, IldValue)>,
+    distances: Vec<(u32, IldValue, tokio::time::Instant)>,
     counters: MirrorLinkCounters,
 }
 
@@ -261,8 +261,8 @@ impl MirrorLink {
         &self.events
     }
 
-    /// Distance frames received on this link (a sensor on CAN), in order.
-    pub fn take_distances(&mut self) -> Vec<(u32, IldValue)> {
+    /// Distance frames received on this link (a sensor on CAN), in order, with their arrival.
+    pub fn take_distances(&mut self) -> Vec<(u32, IldValue, tokio::time::Instant)> {
         std::mem::take(&mut self.distances)
     }
 
@@ -348,9 +348,13 @@ impl MirrorLink {
         };
         match message {
             Message::AngleReading(reading) => return Ok(Some((reading.seq, reading.rad()))),
-            Message::Distance(distance) => self.distances.push((distance.counter, distance.value)),
+            Message::Distance(distance) => {
+                let now = tokio::time::Instant::now();
+                self.distances.push((distance.counter, distance.value, now));
+            }
             Message::AnglesDistanceFd { angles, distance } => {
-                self.distances.push((distance.counter, distance.value));
+                let now = tokio::time::Instant::now();
+                self.distances.push((distance.counter, distance.value, now));
                 return Ok(Some((angles.seq, angles.rad())));
             }
             Message::Status(status) if status.node != NodeId::Controller => {

@@ -199,8 +199,15 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             emulator_summary,
         })
     })?;
-    let clock = sensor_clock(&scene, outcome.emulator_summary.as_ref());
-    output::write(&scenario, &scene, &outcome, clock, &options.out_dir)
+    let declared = declared_sensor_clock(&scene, outcome.emulator_summary.as_ref());
+    output::write(
+        &scenario,
+        &scene,
+        &outcome,
+        declared,
+        measuring_rate_hz(&scene),
+        &options.out_dir,
+    )
 }
 
 /// What to connect to: the nodes' links, and how to start the emulator for emulated nodes.
@@ -388,15 +395,17 @@ pub async fn finish_emulator(
     )
 }
 
-/// The sensor's clock: declared by the emulator's summary when it served the sensor, else
-/// the scene's measuring rate with counter 0 at loop time 0.
-fn sensor_clock(scene: &Scene, emulator: Option<&serde_json::Value>) -> SensorClock {
-    let rate = measuring_rate_hz(scene);
-    let declared = emulator.and_then(|e| e["summary"]["sensor"]["counter_zero_s"].as_f64());
-    SensorClock {
-        measuring_rate_hz: rate,
-        counter_zero_s: declared.unwrap_or(0.0),
-    }
+/// The sensor's clock as the emulator declared it in its summary, when it served the sensor.
+/// (A real sensor declares nothing: its clock is then estimated from arrival times.)
+fn declared_sensor_clock(
+    scene: &Scene,
+    emulator: Option<&serde_json::Value>,
+) -> Option<SensorClock> {
+    let declared = emulator.and_then(|e| e["summary"]["sensor"]["counter_zero_s"].as_f64())?;
+    Some(SensorClock {
+        measuring_rate_hz: measuring_rate_hz(scene),
+        counter_zero_s: declared,
+    })
 }
 
 /// The scene's sensor measuring rate, Hz.

@@ -43,8 +43,8 @@ pub const REPORT: &str = "report.json";
 pub struct RunData {
     /// The loop's record.
     pub record: LoopRecord,
-    /// Distance frames that came on the mirror's CAN link.
-    pub can_distances: Vec<(u32, IldValue)>,
+    /// Distance frames that came on the mirror's CAN link, with their arrival.
+    pub can_distances: Vec<(u32, IldValue, tokio::time::Instant)>,
     /// The mirror link's counters.
     pub mirror_counters: MirrorLinkCounters,
     /// Status and fault frames of the mirror node.
@@ -63,7 +63,8 @@ pub fn write(
     scenario: &Scenario,
     scene: &Scene,
     run: &RunData,
-    clock: SensorClock,
+    clock: Option<SensorClock>,
+    measuring_rate_hz: f64,
     out_dir: &Path,
 ) -> anyhow::Result<ScanEnd> {
     let record = &run.record;
@@ -73,11 +74,20 @@ pub fn write(
     counted.extend(
         run.can_distances
             .iter()
-            .map(|&(counter, value)| CountedSample {
+            .map(|&(counter, value, arrived)| CountedSample {
                 counter: can_counter.unwrap(u64::from(counter)),
                 value,
+                arrived,
             }),
     );
+    let clock = match (clock, record.loop_epoch) {
+        (Some(declared), _) => declared,
+        (None, Some(epoch)) => estimate_sensor_clock(&counted, epoch, measuring_rate_hz),
+        (None, None) => SensorClock {
+            measuring_rate_hz,
+            counter_zero_s: 0.0,
+        },
+    };
     let mut unpaired = 0u64;
     let samples: Vec<ScanSample> = counted
         .iter()
@@ -212,6 +222,34 @@ pub fn write(
     let text = serde_json::to_string_pretty(&report).context("formatting report.json")?;
     std::fs::write(out_dir.join(REPORT), text + "\n").context("writing report.json")?;
     Ok(end)
+}
+
+/// A sensor's clock estimated from arrival times (real time, a real sensor): a sample arrives
+/// after it was measured, so the earliest `arrival - counter / rate` on the loop's time axis
+/// (whose epoch the angle readings fixed the same way) bounds counter 0's instant from above,
+/// within the line's transmission time.
+fn estimate_sensor_clock(
+    samples: &[CountedSample],
+    loop_epoch: tokio::time::Instant,
+    measuring_rate_hz: f64,
+) -> SensorClock {
+    let counter_zero_s = samples
+        .iter()
+        .map(|s| {
+            s.arrived
+                .saturating_duration_since(loop_epoch)
+                .as_secs_f64()
+                - s.counter as f64 / measuring_rate_hz
+        })
+        .fold(f64::INFINITY, f64::min);
+    SensorClock {
+        measuring_rate_hz,
+        counter_zero_s: if counter_zero_s.is_finite() {
+            counter_zero_s
+        } else {
+            0.0
+        },
+    }
 }
 
 /// One point of the reconstruction error against scan time.

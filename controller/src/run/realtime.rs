@@ -5,7 +5,7 @@
 //! link) and the answer latency (reading in to command out), as min / median / p99 / max, and
 //! overruns (answers slower than one period) and readings that never came.
 
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use scanhil_protocol::loop_timing::{PeriodRecorder, PeriodStats};
 use scanhil_protocol::plant_units::SensingPair;
@@ -59,6 +59,12 @@ pub async fn run(
             }
         };
         let arrival = Instant::now();
+        let epoch = tokio::time::Instant::from_std(arrival)
+            .checked_sub(Duration::from_secs_f64((j + 1) as f64 * period_s));
+        record.loop_epoch = match (record.loop_epoch, epoch) {
+            (Some(current), Some(candidate)) => Some(current.min(candidate)),
+            (current, candidate) => current.or(candidate),
+        };
         if let Some(previous) = last_arrival {
             intervals.record((arrival - previous).as_secs_f64());
         }

@@ -10,7 +10,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use scanhil_protocol::ild::IldValue;
-use scanhil_protocol::link::ild::IldLink;
+use scanhil_protocol::link::ild::{IldCycle, IldLink};
 use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{ByteCapture, LinkError, LinkUri, PtyPair};
 
@@ -29,6 +29,8 @@ pub struct CountedSample {
     pub counter: u64,
     /// The distance or error.
     pub value: IldValue,
+    /// When its cycle was complete on this side (for estimating a real sensor's clock).
+    pub arrived: tokio::time::Instant,
 }
 
 /// What the sensor link saw.
@@ -108,7 +110,7 @@ impl SensorLink {
             SensorLink::Elsewhere => std::future::pending().await,
             SensorLink::Ild(stream) => loop {
                 match stream.link.recv_cycle().await {
-                    Ok(cycle) => stream.add(cycle.distance, cycle.extras.first().copied()),
+                    Ok(cycle) => stream.add(&cycle),
                     Err(error) => return error.into(),
                 }
             },
@@ -127,7 +129,7 @@ impl SensorLink {
             match stream.link.recv_cycle_timeout(quiet).await {
                 Ok(None) | Err(LinkError::HangUp { .. }) => return Ok(()),
                 Err(error) => return Err(error),
-                Ok(Some(cycle)) => stream.add(cycle.distance, cycle.extras.first().copied()),
+                Ok(Some(cycle)) => stream.add(&cycle),
             }
         }
     }
@@ -152,11 +154,15 @@ impl SensorLink {
 }
 
 impl IldStream {
-    fn add(&mut self, value: IldValue, counter: Option<u32>) {
-        let counter = match counter {
-            Some(raw) => self.unwrapper.unwrap(u64::from(raw)),
+    fn add(&mut self, cycle: &IldCycle) {
+        let counter = match cycle.extras.first() {
+            Some(&raw) => self.unwrapper.unwrap(u64::from(raw)),
             None => self.samples.len() as u64,
         };
-        self.samples.push(CountedSample { counter, value });
+        self.samples.push(CountedSample {
+            counter,
+            value: cycle.distance,
+            arrived: cycle.arrived,
+        });
     }
 }
