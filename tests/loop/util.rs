@@ -68,13 +68,49 @@ pub fn emulator() -> PathBuf {
     binaries().join("scanhil-emulator")
 }
 
-/// Runs `scanhil` with `args` and returns its output.
+/// The longest any single `scanhil` run in these tests may take before it is killed and the
+/// test fails (a hang must never stall CI).
+const RUN_LIMIT: std::time::Duration = std::time::Duration::from_secs(180);
+
+/// Runs `scanhil` with `args` and returns its output; kills it and panics after [`RUN_LIMIT`].
 pub fn run_scanhil(args: &[&str]) -> Output {
-    Command::new(scanhil())
+    use std::io::Read;
+    let mut child = Command::new(scanhil())
         .args(args)
         .env("SCANHIL_EMULATOR", emulator())
-        .output()
-        .expect("starting scanhil")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("starting scanhil");
+    let mut stdout_pipe = child.stdout.take().expect("piped stdout");
+    let mut stderr_pipe = child.stderr.take().expect("piped stderr");
+    let stdout = std::thread::spawn(move || {
+        let mut text = Vec::new();
+        let _ = stdout_pipe.read_to_end(&mut text);
+        text
+    });
+    let stderr = std::thread::spawn(move || {
+        let mut text = Vec::new();
+        let _ = stderr_pipe.read_to_end(&mut text);
+        text
+    });
+    let deadline = std::time::Instant::now() + RUN_LIMIT;
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("waiting for scanhil") {
+            break status;
+        }
+        if std::time::Instant::now() >= deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("scanhil {args:?} did not finish within {RUN_LIMIT:?}");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    Output {
+        status,
+        stdout: stdout.join().unwrap_or_default(),
+        stderr: stderr.join().unwrap_or_default(),
+    }
 }
 
 /// Panics with both streams when `output` is not a success.
