@@ -291,6 +291,26 @@ async fn the_host_on_the_master_sees_the_adapter_hang_up() {
 }
 
 #[tokio::test]
+async fn sending_to_an_adapter_that_hung_up_fails_instead_of_spinning() {
+    // Regression: a pty whose other end is closed stays "writable" once its buffer is full,
+    // and the host used to retry the refused write for ever at full CPU.
+    let (mut host, raw, _) = host_and_raw_adapter().await;
+    drop(raw);
+    let frame = std_frame(0x100, &[1, 2, 3, 4, 5, 6, 7, 8]);
+    let flood = async {
+        for _ in 0..1_000_000 {
+            host.send(&frame).await?;
+        }
+        Ok(())
+    };
+    let outcome = tokio::time::timeout(Duration::from_secs(10), flood)
+        .await
+        .expect("send neither succeeded nor failed within 10 s (spinning on a dead pty?)");
+    let error = outcome.expect_err("a million frames went into a pty nobody holds");
+    assert!(matches!(error, LinkError::HangUp { .. }), "{error}");
+}
+
+#[tokio::test]
 async fn opening_a_missing_or_non_serial_path_names_it_and_the_os_error() {
     let uri: LinkUri = "slcan:/dev/no-such-adapter@1M".parse().unwrap();
     let error = CanLink::open(&uri, Role::Host).await.unwrap_err();

@@ -171,6 +171,9 @@ impl SerialLine {
     pub async fn write_some(&self, bytes: &[u8]) -> LinkResult<usize> {
         loop {
             let mut guard = self.fd.writable().await.map_err(|e| self.io("write", e))?;
+            // A pty whose other end is gone stays "writable" (hang-up) while its buffer is
+            // full: without this the loop would spin on EAGAIN for ever.
+            let peer_gone = guard.ready().is_write_closed();
             match guard.try_io(|inner| inner.get_ref().write(bytes)) {
                 Ok(Ok(n)) => return Ok(n),
                 Ok(Err(e)) if e.raw_os_error() == Some(nix::libc::EIO) => {
@@ -178,6 +181,7 @@ impl SerialLine {
                 }
                 Ok(Err(e)) if e.kind() == io::ErrorKind::Interrupted => {}
                 Ok(Err(e)) => return Err(self.io("write", e)),
+                Err(_would_block) if peer_gone => return Err(self.hang_up()),
                 Err(_would_block) => {}
             }
         }
