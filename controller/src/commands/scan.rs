@@ -16,7 +16,7 @@ const EXIT_STOPPED: u8 = 3;
 pub struct Args {
     /// The scenario file.
     scenario: PathBuf,
-    /// The output folder (default: scan-out/<scenario name>).
+    /// The output folder (default: `scan-out/<scenario name>`).
     #[arg(long)]
     out: Option<PathBuf>,
     /// The mirror node's link instead of the scenario's: `pty` (emulated), `slcan:PATH[@BITRATE]`

@@ -1,6 +1,6 @@
 //! The mirror node as a protocol state machine, free of I/O and clocks: coil commands in,
-//! one plant period per step, angle readings, status and faults out. The transport driver
-//! ([`super::driver`]) feeds it decoded messages and sends what it returns; lockstep and real
+//! one plant period per step, angle readings, status and faults out. The transport loops
+//! ([`super::lockstep`], [`super::realtime`]) feed it decoded messages and sends what it returns; lockstep and real
 //! time differ only in who calls [`MirrorNode::step`] (the controller's Step frame, or the
 //! emulator's own clock).
 
