@@ -1,1 +1,2 @@
+#![warn(missing_docs)]
 //! Holds nothing: the loop tests live in tests/.

@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! The scanhil host: trajectories, PID and dual-tone control, controller analysis,
 //! identification, the loop over real links, reconstruction and imaging.
 //!

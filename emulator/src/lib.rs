@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! The plant emulator: fast steering mirror, coil drive, optics, ILD 2300 sensor, scenes.
 //!
 //! A [`scene::Scene`] file lists the parts in play; [`plant::Plant::from_scene`] builds only

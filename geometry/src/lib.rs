@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 #![forbid(unsafe_code)]
 //! Scanner geometry of the scanning triangulation sensor: from the fast steering mirror's
 //! mechanical deflections to the laser beam in front of the sensor, and back from

@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 #![forbid(unsafe_code)]
 //! scanhil wire format, shared by the emulator and the controller.
 //!

@@ -1,3 +1,4 @@
+#![warn(missing_docs)]
 //! What scanhil writes for people to look at: line charts (work-precision diagrams, Bode
 //! plots, error against scan time) as SVG or PNG, and height maps as PNG images.
 //!
