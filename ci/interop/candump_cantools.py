@@ -20,18 +20,10 @@ import can
 import cantools
 from cantools.logreader import Parser
 
-passed = 0
-failed = 0
+from tally import Tally
 
-
-def check(ok, what):
-    global passed, failed
-    if ok:
-        passed += 1
-    else:
-        failed += 1
-        print(f"candump_cantools: FAIL: {what}", file=sys.stderr)
-    return ok
+TALLY = Tally("candump_cantools")
+check = TALLY.check
 
 
 def main():
@@ -80,8 +72,7 @@ def main():
         check(msg.is_fd == message.is_fd, f"frame {i}: python-can is_fd {msg.is_fd}, DBC {message.is_fd}")
 
     print(f"candump_cantools: {len(ours)} frames compared ({fd_seen} CAN FD)")
-    print(f"interop: {passed} passed, {failed} failed")
-    return 1 if failed else 0
+    return TALLY.finish()
 
 
 if __name__ == "__main__":

@@ -23,18 +23,10 @@ import tempfile
 import can
 import cantools
 
-passed = 0
-failed = 0
+from tally import Tally
 
-
-def check(ok, what):
-    global passed, failed
-    if ok:
-        passed += 1
-    else:
-        failed += 1
-        print(f"slcan_python_can: FAIL: {what}", file=sys.stderr)
-    return ok
+TALLY = Tally("slcan_python_can")
+check = TALLY.check
 
 
 def frames(db):
@@ -143,8 +135,7 @@ def main():
     check(any(d["message"] == "AnglesDistanceFd" for d in decoded), "AnglesDistanceFd not decoded")
 
     print(f"slcan_python_can: {len(wanted)} frames each way over {first[1]}")
-    print(f"interop: {passed} passed, {failed} failed")
-    return 1 if failed else 0
+    return TALLY.finish()
 
 
 if __name__ == "__main__":

@@ -64,18 +64,10 @@ TRANSPORT_FIELDS = {
 }
 CANDUMP_LINE = re.compile(r"^\((\d+\.\d+)\) (\S+) ([0-9A-F]{3}|[0-9A-F]{8})#([0-9A-F]*)$")
 
-passed = 0
-failed = 0
+from tally import Tally
 
-
-def check(ok, what):
-    global passed, failed
-    if ok:
-        passed += 1
-    else:
-        failed += 1
-        print(f"vcan_loop_check: FAIL: {what}", file=sys.stderr)
-    return ok
+TALLY = Tally("vcan_loop_check")
+check = TALLY.check
 
 
 def read_candump(path):
@@ -224,8 +216,7 @@ def main():
     print(f"vcan_loop_check: result: {report['samples']['points']} points, feature height "
           f"{feature.get('height_mm')} mm (std {feature.get('std_mm')} mm), "
           f"tracking rms alpha {report['tracking_error']['second_half']['alpha']['rms_urad']:.2f} urad")
-    print(f"vcan_loop_check: {passed} passed, {failed} failed")
-    return 1 if failed else 0
+    return TALLY.finish("vcan_loop_check")
 
 
 if __name__ == "__main__":
