@@ -24,7 +24,7 @@
 //!
 //! # Layout
 //! - [`setup`]: the mechanical setup ([`ScannerSetup`]: `y_FSM`, `z_FSM`, `alpha`, receiver).
-//! - [`small_angle`]: the paper's eq. 1-3, with the readings of the paper notes.
+//! - [`small_angle`]: the paper's eq. 1-3, with the readings in `docs/paper-readings.md`.
 //! - [`exact`]: the mirror plane and the exact reflection of the laser.
 //! - [`receiver`]: the triangulation receiver's view of the spot, for shading.
 //! - [`scanner`]: [`Scanner`], the model behind one enum: beam rays and reconstruction.

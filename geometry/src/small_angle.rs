@@ -1,6 +1,6 @@
-//! The paper's eq. 1-3, a small-angle model of the reflection, with the readings of the paper
-//! notes: the `theta` of eq. 3a is the `vartheta` of eq. 2b, the stray `- y_FSM - dy` under
-//! eq. 3b is the tail of `y_s`, and `z_s` is negative below the mirror.
+//! The paper's eq. 1-3, a small-angle model of the reflection, with the readings recorded in
+//! `docs/paper-readings.md`: the `theta` of eq. 3a is the `vartheta` of eq. 2b, the stray
+//! `- y_FSM - dy` under eq. 3b is the tail of `y_s`, and `z_s` is negative below the mirror.
 //!
 //! ```text
 //! dy       = z_FSM [tan(alpha) - tan(alpha - d_alpha)]                  (1)
