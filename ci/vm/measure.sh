@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# ci/vm/measure.sh [WARM_RUNS]: measures ci/vcan-vm.sh and prints JSON (the README's figures).
+# ci/vm/measure.sh [WARM_RUNS]: measures ci/vcan-vm.sh and prints JSON (the figures in
+# docs/ci-vm.md).
 #
 # cold_s: a first run into an empty cache (fetching and unpacking QEMU, kernel, busybox,
 #         can-utils; building the initramfs) up to the command's end; needs the network.

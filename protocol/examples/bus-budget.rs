@@ -1,5 +1,5 @@
 //! Prints the bus budget of the loop's message set: worst-case bits per frame and the
-//! highest loop rate each bus configuration carries (the numbers in the README).
+//! highest loop rate each bus configuration carries (the numbers in `docs/protocol.md`).
 //! `cargo run -p scanhil-protocol --example bus-budget`.
 
 use scanhil_protocol::bus_load::{Bitrates, BusLoad, LoadLimits, Traffic};

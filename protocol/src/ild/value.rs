@@ -1,7 +1,7 @@
 //! ILD 2300 measured values: the 18-bit raw value, its distance in millimetres for a
 //! measuring range, and the error codes that are kept distinct from distances.
 //!
-//! From the operating manual (see the README's ILD section): a raw value `digital` in
+//! From the operating manual (see `docs/protocol.md`, Formats): a raw value `digital` in
 //! `0..=65519` is a distance, `x = (digital * 1.02 / 65520 - 0.01) * MR` millimetres from the
 //! start of the measuring range (MR = the range's span). `0..=642` is the start-of-range
 //! reserve, `643..=64876` the measuring range, `64877..=65519` the end-of-range reserve.
@@ -68,7 +68,8 @@ impl MeasuringRange {
 /// The error codes an ILD 2300 sends in place of a distance on RS422.
 ///
 /// These code values are not yet confirmed against a manual (they are the family's codes as
-/// remembered; see the README's ILD section), so they live here as named constants only.
+/// remembered; see `docs/decisions.md`, unchecked ILD 2300 facts), so they live here as named
+/// constants only.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
 pub enum IldError {
     /// 262075: more data than the baud rate can carry.
