@@ -212,8 +212,9 @@ def main():
         print(f"vcan_loop_check: vcan vs {other}: {', '.join(BYTE_IDENTICAL)} identical; report.json identical "
               f"but for {sorted({'/'.join(map(str, p)) for p in found})}")
     report = reports["vcan"]
-    feature = report.get("feature") or {}
-    print(f"vcan_loop_check: result: {report['samples']['points']} points, feature height "
+    imaging = report.get("imaging") or {}
+    feature = imaging.get("feature") or {}
+    print(f"vcan_loop_check: result: {imaging.get('points')} points, feature height "
           f"{feature.get('height_mm')} mm (std {feature.get('std_mm')} mm), "
           f"tracking rms alpha {report['tracking_error']['second_half']['alpha']['rms_urad']:.2f} urad")
     return TALLY.finish("vcan_loop_check")

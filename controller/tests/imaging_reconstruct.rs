@@ -2,11 +2,10 @@
 //! the `scanhil reconstruct` command.
 
 mod imaging_support;
+mod reconstruct_command;
 
-use imaging_support::{
-    BASE_Z_MM, FULL_RANGE_RAD, STUD_HEIGHT_MM, lissajous, raster, reconstruct_succeeds,
-    scanhil_reconstruct, stud_scene,
-};
+use imaging_support::{BASE_Z_MM, FULL_RANGE_RAD, STUD_HEIGHT_MM, lissajous, raster, stud_scene};
+use reconstruct_command::{reconstruct_succeeds, scanhil_reconstruct};
 use scanhil_controller::imaging::feature::FeatureParams;
 use scanhil_controller::imaging::pipeline::{ImagingOptions, image_samples};
 use scanhil_controller::imaging::ply::read_ply_file;
@@ -165,7 +164,7 @@ fn the_pipeline_measures_the_simulated_stud_from_both_trajectories() {
             ..ImagingOptions::default()
         };
         let imaging = image_samples(&samples, &options).unwrap();
-        let f = imaging.feature.unwrap();
+        let f = imaging.feature.unwrap().unwrap();
         // Ideal data: the top is flat and exact; the plane picks up the few samples that hit
         // the stud's wall less than the inlier threshold above the base, a sub-micrometre
         // bias.
@@ -234,4 +233,51 @@ fn scanhil_reconstruct_writes_ply_png_csv_and_report() {
         stderr.contains("rec.csv:2: z_meas_mm: 'abc' is not a number"),
         "{stderr}"
     );
+}
+
+/// A recording of an ideal scan of the plane-120mm scene, scored by `scanhil reconstruct
+/// --truth-scene` against that scene's surface (read by `scanhil-scene`, no emulator).
+#[test]
+fn scanhil_reconstruct_scores_a_recording_against_a_scene_surface() {
+    let scene = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../fixtures/scenes/plane-120mm.json");
+    let plane = scanhil_controller::imaging::progressive::HeightFieldScene {
+        scanner: Scanner::paper(GeometryModel::ExactReflection),
+        surface: |_x: f64, _y: f64| -120.0,
+        range_mm: (70.0, 170.0),
+    };
+    let samples = simulate_samples(lissajous, &plane, 20_000.0, 0.1);
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("rec.csv");
+    write_recording_csv(std::fs::File::create(&input).unwrap(), &samples).unwrap();
+    let out = dir.path().join("out");
+    let (stdout, report) = reconstruct_succeeds(
+        scanhil_reconstruct(&input, &out)
+            .args([
+                "--model",
+                "exact-reflection",
+                "--pitch-mm",
+                "0.3",
+                "--truth-scene",
+            ])
+            .arg(&scene),
+        &out,
+    );
+    assert!(stdout.contains("against the true surface"), "{stdout}");
+    let e = report.truth_error.unwrap();
+    // The ideal samples lie on the true plane: only gridding remains.
+    assert!(e.covered_rms_mm.unwrap() < 1e-6, "{e:?}");
+    assert!(e.coverage_fraction > 0.3, "{e:?}");
+    assert_eq!(report.progressive.len(), 10);
+    assert!(out.join("progressive.svg").exists());
+    // The same scene without its surface section would not score: a wrong truth is refused.
+    let wrong =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes/loop-fast.json");
+    let run = scanhil_reconstruct(&input, &dir.path().join("out2"))
+        .arg("--truth-scene")
+        .arg(&wrong)
+        .output()
+        .unwrap();
+    assert!(!run.status.success());
+    assert!(String::from_utf8_lossy(&run.stderr).contains("loop-fast.json"));
 }

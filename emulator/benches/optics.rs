@@ -11,8 +11,8 @@ use criterion::{Criterion, criterion_group, criterion_main};
 
 use scanhil_emulator::optics::{Optics, OpticsConfig, SpotConfig};
 use scanhil_emulator::sensor::{Ild2300, SensorConfig};
-use scanhil_emulator::surface::{Surface, SurfaceConfig};
 use scanhil_protocol::plant_units::SensingPair;
+use scanhil_scene::surface::{Surface, SurfaceConfig};
 
 /// One surface of each kind (the height map is the 101 x 101 dimple fixture).
 const SURFACES: [(&str, &str); 6] = [

@@ -8,7 +8,8 @@
 //! # Layout
 //! - [`scene`]: scene files and their parts list.
 //! - [`plant`]: the composed per-period step and its timing convention.
-//! - [`surface`]: what is in front of the sensor, and its ground truth.
+//! - surfaces (what is in front of the sensor, with its ground truth) live in `scanhil-scene`,
+//!   shared with the host.
 //! - [`optics`]: from mirror angles to the laser spot on the surface, with shading.
 //! - [`sensor`]: the ILD 2300-100 triangulation sensor on its own clock.
 //! - [`mirror`]: eq. 4 per sensing axis.
@@ -32,4 +33,3 @@ pub mod precision;
 pub mod scene;
 pub mod sensor;
 pub mod serve;
-pub mod surface;

@@ -20,7 +20,7 @@ use scanhil_geometry::{BeamRay, GeometryModel, Scanner, ScannerSetup, SetupError
 use scanhil_protocol::plant_units::SensingPair;
 use serde::{Deserialize, Serialize};
 
-use crate::surface::Surface;
+use scanhil_scene::surface::Surface;
 
 /// Longest beam stretch searched for a surface, mm (far beyond the sensor's range).
 const BEAM_SEARCH_LENGTH_MM: f64 = 1.0e4;
@@ -324,7 +324,7 @@ impl Optics {
         d_alpha: f64,
         d_beta: f64,
         unit_beam: &Vector3<f64>,
-        hit: &crate::surface::Hit,
+        hit: &scanhil_scene::surface::Hit,
     ) -> Option<ShadeReason> {
         if !self.shading {
             return None;
@@ -373,8 +373,8 @@ fn sunflower(n: usize) -> Vec<[f64; 2]> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::surface::{SurfaceConfig, duplo};
     use proptest::prelude::*;
+    use scanhil_scene::surface::{SurfaceConfig, duplo};
     use std::path::Path;
 
     fn optics(surface_json: &str, config: OpticsConfig) -> Optics {

@@ -31,7 +31,7 @@ use crate::optics::{Optics, OpticsError};
 use crate::power::{PowerAction, PowerMonitor, coil_resistance_ohm};
 use crate::scene::{Part, Scene};
 use crate::sensor::{Ild2300, IldSample, SensorError};
-use crate::surface::{Surface, SurfaceError};
+use scanhil_scene::surface::{Surface, SurfaceError};
 
 /// Why the plant could not be built or stepped.
 #[derive(Debug, thiserror::Error)]

@@ -20,7 +20,7 @@ use crate::mirror::MirrorConfig;
 use crate::optics::OpticsConfig;
 use crate::power::PowerLimitConfig;
 use crate::sensor::SensorConfig;
-use crate::surface::SurfaceConfig;
+use scanhil_scene::surface::SurfaceConfig;
 
 /// The paper's control rate, in Hz (Ta = 50 us).
 pub const DEFAULT_CONTROL_RATE_HZ: f64 = 20_000.0;

@@ -26,8 +26,8 @@ fn duplo_stud_height_tracking_and_recordings() {
     assert_success(&output, "scanhil scan test-duplo-stud");
     let report = report(out.path());
 
-    let height = number(&report, "/feature/height_mm");
-    let std = number(&report, "/feature/std_mm");
+    let height = number(&report, "/imaging/feature/height_mm");
+    let std = number(&report, "/imaging/feature/std_mm");
     assert!(
         (height - STUD_HEIGHT_MM).abs() < HEIGHT_TOLERANCE_MM,
         "stud height {height} mm, truth {STUD_HEIGHT_MM} mm"

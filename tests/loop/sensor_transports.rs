@@ -46,7 +46,7 @@ fn distance_frames_and_the_ild_stream_give_the_same_scan() {
             "{name}: the emulator was killed"
         );
     }
-    assert_eq!(can["feature"], ild["feature"]);
+    assert_eq!(can["imaging"]["feature"], ild["imaging"]["feature"]);
 
     let recording = decode_candump(&on_can.path().join("fsm.log"));
     let text = std::fs::read_to_string(on_can.path().join("fsm.log")).expect("fsm.log");

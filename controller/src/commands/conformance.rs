@@ -56,6 +56,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let plan = LinkPlan {
         fsm,
         sensor,
+        sensor_rate_hz: None,
         spawn_emulator: false,
         emulator: args.emulator,
         scene,

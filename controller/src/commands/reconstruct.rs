@@ -4,7 +4,6 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
-use scanhil_controller::imaging::emulated::EmulatedScanner;
 use scanhil_controller::imaging::feature::{FeatureParams, FeatureSelection, Region};
 use scanhil_controller::imaging::fill::FillMethod;
 use scanhil_controller::imaging::grid::GridMethod;
@@ -12,15 +11,17 @@ use scanhil_controller::imaging::pipeline::{ImagingOptions, image_samples, write
 use scanhil_controller::imaging::ply::PlyEncoding;
 use scanhil_controller::imaging::ransac::RansacParams;
 use scanhil_controller::imaging::recording::read_recording;
+use scanhil_controller::rig::Rig;
 use scanhil_geometry::GeometryModel;
 use scanhil_protocol::ild::MeasuringRange;
+use scanhil_scene::truth::TrueScene;
 
 /// Arguments of `scanhil reconstruct`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The recording: CSV (header t_s,d_alpha_rad,d_beta_rad,z_meas_mm|ild_raw) or JSON lines.
     input: PathBuf,
-    /// Folder for points.ply, height_map.png, height_map.csv and report.json.
+    /// Folder for points.ply, height_map.png, height_map.csv, progressive.svg and report.json.
     #[arg(long, default_value = "reconstruction")]
     out_dir: PathBuf,
     /// Reconstruction model: the paper's eq. 1-3 or the exact reflection.
@@ -65,15 +66,23 @@ pub struct Args {
     /// RANSAC seed.
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Score the z_s map against the surface of this emulator scene file (ground truth).
+    /// Score the z_s map against the surface of this scene file (ground truth), after each
+    /// of --progressive-steps parts of the scan.
     #[arg(long)]
     truth_scene: Option<PathBuf>,
-    /// Start of the sensor's measuring range (for ild_raw), mm.
-    #[arg(long, default_value_t = MeasuringRange::ILD2300_100.start_mm)]
-    range_start_mm: f64,
-    /// Span of the sensor's measuring range (for ild_raw), mm.
-    #[arg(long, default_value_t = MeasuringRange::ILD2300_100.span_mm)]
-    range_span_mm: f64,
+    /// Checkpoints of coverage and error against scan time (1 to 1000).
+    #[arg(long, default_value_t = 10)]
+    progressive_steps: usize,
+    /// The rig description: scanner setup, calibration and sensor range (default: the
+    /// paper's setup, no correction, the ILD 2300-100's range).
+    #[arg(long)]
+    rig: Option<PathBuf>,
+    /// Start of the sensor's measuring range (for ild_raw), mm; overrides the rig's.
+    #[arg(long)]
+    range_start_mm: Option<f64>,
+    /// Span of the sensor's measuring range (for ild_raw), mm; overrides the rig's.
+    #[arg(long)]
+    range_span_mm: Option<f64>,
 }
 
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -112,10 +121,28 @@ fn rect(v: &[f64]) -> Region {
 
 /// Runs `scanhil reconstruct`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let rig = args.rig.as_deref().map(Rig::load).transpose()?;
+    let rig_range = rig
+        .as_ref()
+        .and_then(|rig| rig.sensor)
+        .map_or(MeasuringRange::ILD2300_100, |sensor| sensor.range());
     let range = MeasuringRange {
-        start_mm: args.range_start_mm,
-        span_mm: args.range_span_mm,
+        start_mm: args.range_start_mm.unwrap_or(rig_range.start_mm),
+        span_mm: args.range_span_mm.unwrap_or(rig_range.span_mm),
     };
+    if !(range.start_mm.is_finite() && range.span_mm.is_finite() && range.span_mm > 0.0) {
+        anyhow::bail!(
+            "--range-start-mm {} / --range-span-mm {}: the range must be finite with a \
+             positive span",
+            range.start_mm,
+            range.span_mm
+        );
+    }
+    let truth = args
+        .truth_scene
+        .as_deref()
+        .map(TrueScene::from_scene_file)
+        .transpose()?;
     let recording = read_recording(&args.input, &range)?;
     let ransac = RansacParams {
         inlier_threshold_mm: args.ransac_threshold_mm,
@@ -154,13 +181,21 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         subtract_plane: args.subtract_plane,
         ransac,
         feature,
+        progressive_steps: args.progressive_steps,
         ..ImagingOptions::default()
+    };
+    let options = match &rig {
+        Some(rig) => ImagingOptions {
+            setup: rig.scanner.setup,
+            calibration: rig.scanner.calibration,
+            ..options
+        },
+        None => options,
     };
     let mut imaging = image_samples(&recording.samples, &options)
         .with_context(|| format!("imaging {}", args.input.display()))?;
-    if let Some(scene) = &args.truth_scene {
-        imaging.score_against(&EmulatedScanner::from_scene_file(scene)?.optics);
-    }
+    let scan_time_s = recording.samples.iter().map(|s| s.t_s).fold(0.0, f64::max);
+    imaging.score_progressive(truth.as_ref(), scan_time_s);
     let encoding = match args.ply {
         Encoding::Binary => PlyEncoding::BinaryLittleEndian,
         Encoding::Ascii => PlyEncoding::Ascii,
@@ -171,6 +206,17 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         encoding,
         &recording.missing_by_reason,
     )?;
+    let json = args.out_dir.join("report.json");
+    let report_json = serde_json::json!({
+        "input": args.input.display().to_string(),
+        "rig": rig.as_ref().map(Rig::to_json),
+        "imaging": &report,
+    });
+    std::fs::write(
+        &json,
+        serde_json::to_string_pretty(&report_json).context("formatting report.json")? + "\n",
+    )
+    .with_context(|| format!("writing {}", json.display()))?;
     println!(
         "{}: {} samples, {} points ({} missing), model {}, {}x{} cells of {} mm, coverage {:.3}",
         args.input.display(),
@@ -203,5 +249,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         );
     }
     println!("wrote {}", args.out_dir.display());
+    if let Some(error) = &report.feature_error {
+        eprintln!("error: feature height: {error}");
+        return Ok(ExitCode::FAILURE);
+    }
     Ok(ExitCode::SUCCESS)
 }

@@ -11,9 +11,7 @@
 //! - [`feature`]: the height of a feature above its base plane, with its spread.
 //! - [`pipeline`]: the whole chain on one recording, and its files (PLY, PNG, CSV, JSON).
 //! - [`progressive`]: the image after any part of a frame and its error against scan time.
-//! - [`emulated`]: simulated scans through the emulator's optics and sensor (scene files).
 
-pub mod emulated;
 pub mod feature;
 pub mod fill;
 pub mod grid;

@@ -1,27 +1,36 @@
-//! The whole imaging chain on one set of samples: reconstruct, grid, fill, fit the base
-//! plane, measure a feature, and write PLY + PNG + CSV + JSON. `scanhil reconstruct` and the
-//! loop's `scan` both call [`image_samples`] and [`write_outputs`].
+//! The one imaging chain on one set of samples: calibrate, reconstruct with the rig's
+//! geometry, grid, fill, fit the base plane, measure a feature, score against a true surface
+//! over scan time, and write PLY + PNG + CSV + the progressive plot. `scanhil reconstruct` and
+//! the loop's `scan` both call [`image_samples`], [`Imaging::score_progressive`] and
+//! [`write_outputs`], so both write the same files and the same [`ImagingReport`] fields; each
+//! puts the report into its own `report.json`.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use scanhil_geometry::{GeometryModel, Scanner, ScannerSetup};
+use scanhil_scene::truth::TrueScene;
 
 use super::feature::{FeatureError, FeatureHeight, FeatureParams, feature_height};
 use super::fill::{FillMethod, FillReport, fill_missing};
 use super::grid::{GridError, GridMethod, GridSpec, HeightMap, grid_points};
 use super::ply::{PlyEncoding, PlyError, write_ply_file};
-use super::progressive::{ProgressivePoint, ScanScene, progressive_errors};
+use super::progressive::{
+    ProgressiveComparison, ProgressivePoint, ProgressiveRun, progressive_errors,
+};
 use super::ransac::{PlaneFit, RansacError, RansacParams, fit_plane};
 use super::reconstruct::{DEFAULT_MODEL, Reconstruction, ScanSample, reconstruct};
+use crate::rig::Calibration;
 
 /// What to make of the samples.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ImagingOptions {
     /// The reconstruction model.
     pub model: GeometryModel,
-    /// The scanner's mechanical setup.
+    /// The scanner's mechanical setup (the rig's).
     pub setup: ScannerSetup,
+    /// The rig's corrections of angles and distances, applied before reconstruction.
+    pub calibration: Calibration,
     /// Height map cell size, mm.
     pub pitch_mm: f64,
     /// How samples become cells.
@@ -34,21 +43,29 @@ pub struct ImagingOptions {
     pub ransac: RansacParams,
     /// Measure a feature's height with these settings.
     pub feature: Option<FeatureParams>,
+    /// Checkpoints of the map's coverage and error against scan time (at least 1).
+    pub progressive_steps: usize,
 }
 
+/// The most checkpoints [`ImagingOptions::progressive_steps`] may ask for: each is a
+/// gridding pass over the points and a map of the whole grid.
+pub const MAX_PROGRESSIVE_STEPS: usize = 1000;
+
 impl Default for ImagingOptions {
-    /// Eq. 1-3, the paper's setup, 0.1 mm cells (about the 130 um spot), inverse-distance
-    /// gridding, no fill, z_s mapped, no feature.
+    /// Eq. 1-3, the paper's setup without correction, 0.1 mm cells (about the 130 um spot),
+    /// inverse-distance gridding, no fill, z_s mapped, no feature, 10 checkpoints.
     fn default() -> Self {
         ImagingOptions {
             model: DEFAULT_MODEL,
             setup: ScannerSetup::default(),
+            calibration: Calibration::default(),
             pitch_mm: 0.1,
             grid: GridMethod::default(),
             fill: FillMethod::None,
             subtract_plane: false,
             ransac: RansacParams::default(),
             feature: None,
+            progressive_steps: 10,
         }
     }
 }
@@ -64,30 +81,42 @@ pub struct Imaging {
     pub fill: FillReport,
     /// The subtracted base plane.
     pub plane: Option<PlaneFit>,
-    /// The feature measurement.
-    pub feature: Option<FeatureHeight>,
-    /// The z_s map's error against a known surface, after [`Imaging::score_against`].
-    pub truth_error: Option<ProgressivePoint>,
+    /// The feature measurement, or why it failed (the other outputs stand either way).
+    pub feature: Option<Result<FeatureHeight, FeatureError>>,
+    /// The z_s map's coverage, and its error against the true surface when one is known,
+    /// after each checkpoint of scan time ([`Imaging::score_progressive`]).
+    pub progressive: Vec<ProgressivePoint>,
+    /// The true scene scored against, if any.
+    pub truth: Option<String>,
     /// The options used.
     pub options: ImagingOptions,
 }
 
 impl Imaging {
-    /// Scores the z_s height map (gridded and filled as the options say, whether or not the
-    /// map here is plane-subtracted) against the true surface of `scene`, over all the
-    /// points: see [`progressive_errors`] for the figures.
-    pub fn score_against(&mut self, scene: &impl ScanScene) {
-        let points = &self.reconstruction.cloud.points;
-        let t_end_s = points.iter().map(|p| p.t_s).fold(0.0, f64::max);
-        self.truth_error = progressive_errors(
-            points,
+    /// Grids the z_s map (as the options say, whether or not the map here is
+    /// plane-subtracted) after `progressive_steps` equal parts of `[0, scan_time_s]` and
+    /// scores each against `truth` when given (coverage only without): see
+    /// [`progressive_errors`] for the figures. The last checkpoint is the whole scan.
+    pub fn score_progressive(&mut self, truth: Option<&TrueScene>, scan_time_s: f64) {
+        let steps = self.options.progressive_steps;
+        let checkpoints: Vec<f64> = (1..=steps)
+            .map(|i| scan_time_s * i as f64 / steps as f64)
+            .collect();
+        self.progressive = progressive_errors(
+            &self.reconstruction.cloud.points,
             self.map.spec,
             self.options.grid,
             self.options.fill,
-            &[t_end_s],
-            |x, y| scene.true_z_mm(x, y),
-        )
-        .pop();
+            &checkpoints,
+            |x, y| truth.and_then(|t| t.z_mm(x, y)),
+        );
+        self.truth = truth.map(|t| t.path.display().to_string());
+    }
+
+    /// The error of the whole scan against the truth (the last checkpoint), if scored.
+    #[must_use]
+    pub fn truth_error(&self) -> Option<ProgressivePoint> {
+        self.truth.as_ref().and(self.progressive.last().copied())
     }
 }
 
@@ -97,15 +126,20 @@ pub enum ImagingError {
     /// The scanner setup is unusable.
     #[error("scanner setup: {0}")]
     Setup(#[from] scanhil_geometry::SetupError),
+    /// The options ask for something that cannot be made.
+    #[error("imaging option `{field}`: {reason}")]
+    Options {
+        /// The option.
+        field: &'static str,
+        /// Why.
+        reason: String,
+    },
     /// No grid could be laid over the points.
     #[error("height map: {0}")]
     Grid(#[from] GridError),
     /// The base plane could not be fitted.
     #[error("base plane: {0}")]
     Plane(#[from] RansacError),
-    /// The feature could not be measured.
-    #[error("feature: {0}")]
-    Feature(#[from] FeatureError),
     /// The point cloud could not be written.
     #[error(transparent)]
     Ply(#[from] PlyError),
@@ -122,26 +156,39 @@ pub enum ImagingError {
     },
 }
 
-/// Reconstructs, grids, fills and measures `samples`.
+/// Calibrates, reconstructs, grids, fills and measures `samples`.
+///
+/// # Errors
+/// [`ImagingError`]: an unusable setup or option, no point to lay a grid over, a base plane
+/// that cannot be fitted for `subtract_plane`. A feature that cannot be measured is not an
+/// error here: it is kept in [`Imaging::feature`].
 pub fn image_samples(
     samples: &[ScanSample],
     options: &ImagingOptions,
 ) -> Result<Imaging, ImagingError> {
+    let steps = options.progressive_steps;
+    if !(1..=MAX_PROGRESSIVE_STEPS).contains(&steps) {
+        return Err(ImagingError::Options {
+            field: "progressive_steps",
+            reason: format!("{steps} is not between 1 and {MAX_PROGRESSIVE_STEPS}"),
+        });
+    }
     let scanner = Scanner::new(options.setup, options.model)?;
-    let reconstruction = reconstruct(samples, &scanner);
+    let calibrated: Vec<ScanSample> = samples
+        .iter()
+        .map(|&sample| options.calibration.apply(sample))
+        .collect();
+    let reconstruction = reconstruct(&calibrated, &scanner);
     let xyz: Vec<[f64; 3]> = reconstruction
         .cloud
         .points
         .iter()
         .map(|p| [p.x_mm, p.y_mm, p.z_mm])
         .collect();
-    let feature = options
-        .feature
-        .map(|params| feature_height(&xyz, &params))
-        .transpose()?;
+    let feature = options.feature.map(|params| feature_height(&xyz, &params));
     let plane = match (&feature, options.subtract_plane) {
-        (Some(f), true) => Some(f.plane.clone()),
-        (None, true) => Some(fit_plane(&xyz, &options.ransac)?),
+        (Some(Ok(f)), true) => Some(f.plane.clone()),
+        (_, true) => Some(fit_plane(&xyz, &options.ransac)?),
         (_, false) => None,
     };
     let spec = GridSpec::covering(xyz.iter().map(|p| (p[0], p[1])), options.pitch_mm)?;
@@ -157,7 +204,8 @@ pub fn image_samples(
         fill,
         plane,
         feature,
-        truth_error: None,
+        progressive: Vec::new(),
+        truth: None,
         options: *options,
     })
 }
@@ -192,8 +240,14 @@ pub struct ImagingReport {
     pub plane: Option<PlaneFit>,
     /// The feature height.
     pub feature: Option<FeatureHeight>,
-    /// The z_s map's error against the true surface, when one was given.
+    /// Why the feature height could not be measured, when it could not.
+    pub feature_error: Option<String>,
+    /// The true scene scored against, if any.
+    pub truth: Option<String>,
+    /// The z_s map's error against the true surface over the whole scan, when one was given.
     pub truth_error: Option<ProgressivePoint>,
+    /// Coverage (and error against the truth, when given) after each checkpoint of scan time.
+    pub progressive: Vec<ProgressivePoint>,
     /// The options used.
     pub options: ImagingOptions,
     /// The files written, relative to the output folder.
@@ -205,11 +259,22 @@ pub const OUTPUT_FILES: [&str; 4] = [
     "points.ply",
     "height_map.png",
     "height_map.csv",
-    "report.json",
+    "progressive.svg",
 ];
 
-/// Writes `points.ply`, `height_map.png`, `height_map.csv` and `report.json` into `dir`
-/// (created if needed) and returns the report; `missing_by_reason` is copied into it.
+/// The height map PNG is drawn at least this many pixels along its longer side (whole
+/// pixels per cell, at most [`MAX_PIXELS_PER_CELL`]): a 0.1 mm grid over a 12 mm field is
+/// 480 px, not 120.
+pub const MIN_PNG_SIDE_PX: usize = 480;
+/// The most pixels per height map cell.
+pub const MAX_PIXELS_PER_CELL: usize = 8;
+
+/// Writes `points.ply`, `height_map.png`, `height_map.csv` and `progressive.svg` into `dir`
+/// (created if needed) and returns the report for the caller's `report.json`;
+/// `missing_by_reason` is copied into it.
+///
+/// # Errors
+/// The first file that cannot be written.
 pub fn write_outputs(
     imaging: &Imaging,
     dir: &Path,
@@ -218,18 +283,40 @@ pub fn write_outputs(
 ) -> Result<ImagingReport, ImagingError> {
     let io = |path: PathBuf| move |source| ImagingError::Io { path, source };
     std::fs::create_dir_all(dir).map_err(io(dir.to_owned()))?;
-    let [ply, png, csv, json] = OUTPUT_FILES.map(|f| dir.join(f));
+    let [ply, png, csv, svg] = OUTPUT_FILES.map(|f| dir.join(f));
     write_ply_file(&ply, &imaging.reconstruction.cloud, encoding)?;
-    let map_range_mm = imaging.map.write_png(&png, 1)?;
+    let longer_side = imaging.map.spec.nx.max(imaging.map.spec.ny).max(1);
+    let pixels_per_cell = MIN_PNG_SIDE_PX
+        .div_ceil(longer_side)
+        .clamp(1, MAX_PIXELS_PER_CELL);
+    let map_range_mm = imaging.map.write_png(&png, pixels_per_cell)?;
     let file = std::fs::File::create(&csv).map_err(io(csv.clone()))?;
     imaging
         .map
         .write_csv(std::io::BufWriter::new(file))
         .map_err(io(csv.clone()))?;
+    let mut files: Vec<String> = OUTPUT_FILES[..3].iter().map(|f| f.to_string()).collect();
+    if !imaging.progressive.is_empty() {
+        let mut comparison = ProgressiveComparison::new(
+            imaging.options.model,
+            None,
+            imaging.map.spec,
+            imaging.options.grid,
+            imaging.options.fill,
+        );
+        comparison.runs.push(ProgressiveRun {
+            name: "this scan".into(),
+            samples: samples_in(&imaging.reconstruction),
+            missing_samples: imaging.reconstruction.missing_samples,
+            points: imaging.progressive.clone(),
+        });
+        comparison.draw(&svg)?;
+        files.push(OUTPUT_FILES[3].to_string());
+    }
     let r = &imaging.reconstruction;
     let report = ImagingReport {
         model: r.cloud.model.name().to_string(),
-        samples: r.cloud.points.len() + r.missing_samples + r.non_finite_samples,
+        samples: samples_in(r),
         points: r.cloud.points.len(),
         missing_samples: r.missing_samples,
         non_finite_samples: r.non_finite_samples,
@@ -245,12 +332,21 @@ pub fn write_outputs(
         map_range_mm,
         fill: imaging.fill,
         plane: imaging.plane.clone(),
-        feature: imaging.feature.clone(),
-        truth_error: imaging.truth_error,
+        feature: imaging.feature.clone().and_then(Result::ok),
+        feature_error: imaging
+            .feature
+            .as_ref()
+            .and_then(|f| f.as_ref().err().map(ToString::to_string)),
+        truth: imaging.truth.clone(),
+        truth_error: imaging.truth_error(),
+        progressive: imaging.progressive.clone(),
         options: imaging.options,
-        files: OUTPUT_FILES.iter().map(|f| f.to_string()).collect(),
+        files,
     };
-    let text = serde_json::to_string_pretty(&report).unwrap_or_default();
-    std::fs::write(&json, text + "\n").map_err(io(json.clone()))?;
     Ok(report)
+}
+
+/// Samples that went into a reconstruction.
+fn samples_in(r: &Reconstruction) -> usize {
+    r.cloud.points.len() + r.missing_samples + r.non_finite_samples
 }

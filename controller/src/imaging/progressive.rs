@@ -262,8 +262,9 @@ impl ProgressiveComparison {
         }
     }
 
-    /// Draws four panels against scan time: whole-image RMS error, covered-cell RMS and
-    /// median absolute error (log scale, mm) and coverage; one line per run.
+    /// Draws up to four panels against scan time: whole-image RMS error, covered-cell RMS and
+    /// median absolute error (log scale, mm, when a truth gave errors) and coverage; one line
+    /// per run.
     pub fn draw(&self, path: &Path) -> Result<(), ReportError> {
         let series = |pick: &dyn Fn(&ProgressivePoint) -> Option<f64>| -> Vec<Series> {
             self.runs
@@ -287,37 +288,40 @@ impl ProgressiveComparison {
             y_axis,
             series: s,
         };
-        draw_charts(
-            path,
-            &[
-                chart(
-                    &format!(
-                        "whole image (missing cells: {:?} fill): RMS error",
-                        self.fill
-                    ),
-                    "RMS error (mm)",
-                    Axis::Log,
-                    series(&|p| p.image_rms_mm),
+        let charts = [
+            chart(
+                &format!(
+                    "whole image (missing cells: {:?} fill): RMS error",
+                    self.fill
                 ),
-                chart(
-                    "measured cells: RMS error",
-                    "RMS error (mm)",
-                    Axis::Log,
-                    series(&|p| p.covered_rms_mm),
-                ),
-                chart(
-                    "measured cells: median absolute error",
-                    "median |error| (mm)",
-                    Axis::Log,
-                    series(&|p| p.covered_median_abs_mm),
-                ),
-                chart(
-                    "coverage",
-                    "measured cells (fraction)",
-                    Axis::Linear,
-                    series(&|p| Some(p.coverage_fraction)),
-                ),
-            ],
-        )
+                "RMS error (mm)",
+                Axis::Log,
+                series(&|p| p.image_rms_mm),
+            ),
+            chart(
+                "measured cells: RMS error",
+                "RMS error (mm)",
+                Axis::Log,
+                series(&|p| p.covered_rms_mm),
+            ),
+            chart(
+                "measured cells: median absolute error",
+                "median |error| (mm)",
+                Axis::Log,
+                series(&|p| p.covered_median_abs_mm),
+            ),
+            chart(
+                "coverage",
+                "measured cells (fraction)",
+                Axis::Linear,
+                series(&|p| Some(p.coverage_fraction)),
+            ),
+        ];
+        // Without a truth only the coverage has points: the error panels are left out.
+        let drawable: Vec<Chart> = charts
+            .into_iter()
+            .filter(|chart| chart.series.iter().any(|s| !s.points.is_empty()))
+            .collect();
+        draw_charts(path, &drawable)
     }
 }

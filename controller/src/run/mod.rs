@@ -15,7 +15,6 @@
 //! - [`tracking`]: reference against measured angles.
 //! - [`output`]: report.json, PLY, height map, plots.
 //! - [`progress`]: the progress bar (terminal only).
-//! - [`truth`]: the scene's true surface, to score a reconstruction against.
 //! - [`conformance`]: checks of a mirror node and a sensor against the loop protocol.
 //! - [`plant_link`]: [`crate::link::PlantLink`] over a real mirror link, for `scanhil identify`.
 
@@ -32,7 +31,6 @@ pub mod realtime;
 pub mod scenario;
 pub mod sensor_link;
 pub mod tracking;
-pub mod truth;
 
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
@@ -40,7 +38,6 @@ use std::sync::mpsc;
 use std::time::Duration;
 
 use anyhow::{Context, bail};
-use scanhil_emulator::scene::Scene;
 use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{CanCapture, CanLink, CaptureClock, PtyPair, VirtualClock};
 
@@ -112,20 +109,21 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
     }
     let settings = ControllerSettings::load(&scenario.controller)?;
     let mut controller = settings.build()?;
-    let mut scene = Scene::load(&scenario.scene)?;
-    scene.seed = scenario.seed;
+    let rig = &scenario.rig;
     let period_s = controller.period_s();
-    if (scene.period_s() - period_s).abs() > 1e-12 * period_s {
+    if (rig.period_s() - period_s).abs() > 1e-12 * period_s {
         bail!(
-            "{}: the controller runs at {:.1} Hz but scene {} at {:.1} Hz",
+            "{}: the controller {} runs at {:.1} Hz but rig {} at {:.1} Hz",
             scenario.path.display(),
+            scenario.controller.display(),
             1.0 / period_s,
-            scenario.scene.display(),
-            1.0 / scene.period_s()
+            rig.path.display(),
+            rig.control_rate_hz
         );
     }
+    let sensor_rate_hz = rig.sensor.map(|sensor| sensor.measuring_rate_hz);
     let periods = (scenario.duration_s / period_s).round() as u64;
-    bus_load::check(&scenario, measuring_rate_hz(&scene), period_s)?;
+    bus_load::check(&scenario, sensor_rate_hz.unwrap_or(0.0), period_s)?;
     std::fs::create_dir_all(&options.out_dir)
         .with_context(|| format!("creating {}", options.out_dir.display()))?;
 
@@ -137,12 +135,11 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
     let outcome = runtime.block_on(async {
         let plan = LinkPlan {
             fsm: scenario.links.fsm.clone(),
-            sensor: scene
-                .has(scanhil_emulator::scene::Part::Sensor)
-                .then(|| scenario.links.sensor.clone()),
+            sensor: rig.sensor.map(|_| scenario.links.sensor.clone()),
+            sensor_rate_hz,
             spawn_emulator: scenario.links.spawn_emulator,
             emulator: options.emulator.clone(),
-            scene: scenario.scene.clone(),
+            scene: scenario.scene.clone().unwrap_or_default(),
             seed: scenario.seed,
             timing: scenario.timing,
             period_s,
@@ -199,15 +196,9 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             emulator_summary,
         })
     })?;
-    let declared = declared_sensor_clock(&scene, outcome.emulator_summary.as_ref());
-    output::write(
-        &scenario,
-        &scene,
-        &outcome,
-        declared,
-        measuring_rate_hz(&scene),
-        &options.out_dir,
-    )
+    let declared = sensor_rate_hz
+        .and_then(|rate| declared_sensor_clock(rate, outcome.emulator_summary.as_ref()));
+    output::write(&scenario, &outcome, declared, &options.out_dir)
 }
 
 /// What to connect to: the nodes' links, and how to start the emulator for emulated nodes.
@@ -217,6 +208,9 @@ pub struct LinkPlan {
     pub fsm: NodeLink,
     /// The sensor's link; `None` when the run needs no sensor.
     pub sensor: Option<NodeLink>,
+    /// The sensor's measuring rate the host expects, Hz: an emulator started here must serve
+    /// a sensor at this rate (`None`: not checked).
+    pub sensor_rate_hz: Option<f64>,
     /// Start `scanhil-emulator serve` (for pty links always; for URIs when asked).
     pub spawn_emulator: bool,
     /// The emulator binary, if not found the usual way.
@@ -319,13 +313,17 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         .await
         .context("waiting for the emulator")?;
         let (first, lines) = ready;
-        match first {
-            Ok(line) if line.contains("\"ready\"") => {}
-            _ => bail!(
+        let ready = first
+            .ok()
+            .and_then(|line| serde_json::from_str::<serde_json::Value>(&line).ok())
+            .filter(|line| line["event"] == "ready");
+        let Some(ready) = ready else {
+            bail!(
                 "{} did not become ready (see its error above)",
                 process.path().display()
-            ),
-        }
+            );
+        };
+        check_emulated_devices(&ready, plan)?;
         (Some(process), Some(lines))
     } else {
         (None, None)
@@ -395,22 +393,47 @@ pub async fn finish_emulator(
     )
 }
 
+/// Checks the devices an emulator started here serves against what the host expects (its
+/// ready line states them), as a real sensor's configuration is read back and checked: the
+/// control period, and whether a sensor is served and at what rate.
+///
+/// # Errors
+/// A mismatch, naming both values and the scene.
+fn check_emulated_devices(ready: &serde_json::Value, plan: &LinkPlan) -> anyhow::Result<()> {
+    let scene = plan.scene.display();
+    let period_s = ready["period_s"].as_f64().unwrap_or(f64::NAN);
+    let same_period = (period_s - plan.period_s).abs() <= 1e-12 * plan.period_s;
+    if !same_period {
+        bail!(
+            "the emulated mirror node of scene {scene} runs at {:.1} Hz, the rig expects {:.1} Hz",
+            1.0 / period_s,
+            1.0 / plan.period_s
+        );
+    }
+    let served = ready["sensor_measuring_rate_hz"].as_f64();
+    match (plan.sensor_rate_hz, served) {
+        (Some(expected), Some(served)) if (expected - served).abs() > 1e-9 * expected => bail!(
+            "the emulated sensor of scene {scene} measures at {served} Hz, the rig expects \
+             {expected} Hz"
+        ),
+        (Some(expected), None) => {
+            bail!("the rig has a sensor at {expected} Hz but scene {scene} has no `sensor` part")
+        }
+        _ => Ok(()),
+    }
+}
+
 /// The sensor's clock as the emulator declared it in its summary, when it served the sensor.
 /// (A real sensor declares nothing: its clock is then estimated from arrival times.)
 fn declared_sensor_clock(
-    scene: &Scene,
+    measuring_rate_hz: f64,
     emulator: Option<&serde_json::Value>,
 ) -> Option<SensorClock> {
     let declared = emulator.and_then(|e| e["summary"]["sensor"]["counter_zero_s"].as_f64())?;
     Some(SensorClock {
-        measuring_rate_hz: measuring_rate_hz(scene),
+        measuring_rate_hz,
         counter_zero_s: declared,
     })
-}
-
-/// The scene's sensor measuring rate, Hz.
-fn measuring_rate_hz(scene: &Scene) -> f64 {
-    scene.sensor.unwrap_or_default().measuring_rate_hz
 }
 
 /// Reads a child's stdout lines on a thread.

@@ -2,21 +2,21 @@
 //!
 //! | file | what |
 //! |------|------|
-//! | `report.json` | scenario, active plant parts, timing, tracking error, resolution and frame rate, feature height, reconstruction error against scan time, counters |
+//! | `report.json` | scenario, rig, outcome, periods, timing, tracking error, trajectory figures, sample pairing, `imaging` (the same [`ImagingReport`](crate::imaging::pipeline::ImagingReport) `scanhil reconstruct` writes: feature height, coverage, error against the truth over scan time), link counters, the emulator's summary |
 //! | `points.ply` | the reconstructed point cloud (binary little-endian PLY with t, angles, z_meas) |
 //! | `height_map.png`, `height_map.csv` | the gridded heights (missing cells magenta / empty) |
 //! | `tracking.svg` | reference and measured angles, and the tracking error, over time |
-//! | `progressive.svg` | reconstruction error and coverage against scan time (when the truth is known) |
+//! | `progressive.svg` | coverage, and the error against the true surface when one is known, against scan time |
 //! | `fsm.log` | every frame on the mirror link, candump `-L` format, loop-time stamps |
 //! | `sensor.ild` | every byte of the ILD stream, raw (`scanhil decode --format ild`) |
 
+use std::collections::BTreeMap;
 use std::path::Path;
 
 use anyhow::Context;
-use scanhil_emulator::scene::Scene;
-use scanhil_geometry::Scanner;
-use scanhil_protocol::ild::{IldValue, MeasuringRange};
+use scanhil_protocol::ild::IldValue;
 use scanhil_report::{Axis, Chart, Series, draw_charts};
+use scanhil_scene::truth::TrueScene;
 
 use super::ScanEnd;
 use super::lockstep::LoopRecord;
@@ -24,10 +24,10 @@ use super::mirror_link::{MirrorLinkCounters, NodeEvent};
 use super::pairing::{CounterUnwrapper, SensorClock};
 use super::scenario::Scenario;
 use super::sensor_link::{CountedSample, ILD_COUNTER_MODULUS, SensorCounters};
-use crate::imaging::feature::feature_height;
-use crate::imaging::grid::{GridMethod, GridSpec, HeightMap, grid_points};
-use crate::imaging::ply::{PlyEncoding, write_ply_file};
-use crate::imaging::reconstruct::{ScanSample, reconstruct};
+use crate::imaging::grid::GridMethod;
+use crate::imaging::pipeline::{ImagingOptions, image_samples, write_outputs};
+use crate::imaging::ply::PlyEncoding;
+use crate::imaging::reconstruct::ScanSample;
 
 /// The mirror link's candump log.
 pub const FSM_LOG: &str = "fsm.log";
@@ -55,20 +55,21 @@ pub struct RunData {
     pub emulator_summary: Option<serde_json::Value>,
 }
 
-/// Images the run and writes every output file; returns how the run ended.
+/// Images the run with the one imaging pipeline (the rig's geometry and calibration) and
+/// writes every output file; returns how the run ended.
 ///
 /// # Errors
-/// A file that cannot be written.
+/// A file that cannot be written, a truth scene that cannot be read.
 pub fn write(
     scenario: &Scenario,
-    scene: &Scene,
     run: &RunData,
     clock: Option<SensorClock>,
-    measuring_rate_hz: f64,
     out_dir: &Path,
 ) -> anyhow::Result<ScanEnd> {
     let record = &run.record;
-    let range = MeasuringRange::ILD2300_100;
+    let rig = &scenario.rig;
+    let measuring_rate_hz = rig.sensor.map_or(0.0, |sensor| sensor.measuring_rate_hz);
+    let range = rig.sensor.map(|sensor| sensor.range());
     let (mut counted, sensor_counters) = run.sensor.clone();
     let mut can_counter = CounterUnwrapper::new(ILD_COUNTER_MODULUS);
     counted.extend(
@@ -89,6 +90,7 @@ pub fn write(
         },
     };
     let mut unpaired = 0u64;
+    let mut missing_by_reason: BTreeMap<String, usize> = BTreeMap::new();
     let samples: Vec<ScanSample> = counted
         .iter()
         .filter_map(|sample| {
@@ -98,8 +100,11 @@ pub fn write(
                 return None;
             };
             let z_meas_mm = match sample.value {
-                IldValue::Distance(digital) => range.digital_to_mm(digital),
-                IldValue::Error(_) => None,
+                IldValue::Distance(digital) => range.and_then(|r| r.digital_to_mm(digital)),
+                IldValue::Error(error) => {
+                    *missing_by_reason.entry(error.name().into()).or_default() += 1;
+                    None
+                }
             };
             Some(ScanSample {
                 t_s,
@@ -109,76 +114,72 @@ pub fn write(
             })
         })
         .collect();
-    let scanner = Scanner::paper(scenario.imaging.reconstruction);
-    let reconstruction = reconstruct(&samples, &scanner);
-    let points = &reconstruction.cloud.points;
-    if !points.is_empty() {
-        write_ply_file(
-            &out_dir.join("points.ply"),
-            &reconstruction.cloud,
-            PlyEncoding::BinaryLittleEndian,
+    let truth = scenario
+        .truth_scene()
+        .map(TrueScene::from_scene_file)
+        .transpose()
+        .or_else(|error| match error {
+            // An emulated scene without a surface (a control-only run) has nothing to score.
+            scanhil_scene::truth::TruthError::NoSurface { .. } if scenario.truth.is_none() => {
+                Ok(None)
+            }
+            error => Err(error),
+        })
+        .context("reading the true surface")?;
+    let options = ImagingOptions {
+        model: scenario.imaging.reconstruction,
+        setup: rig.scanner.setup,
+        calibration: rig.scanner.calibration,
+        pitch_mm: scenario.imaging.pitch_mm,
+        grid: GridMethod::default(),
+        feature: scenario.imaging.feature,
+        progressive_steps: scenario.imaging.progressive_steps,
+        ..ImagingOptions::default()
+    };
+    let scan_time_s = record.periods_done as f64 * record.angles.period_s();
+    let imaging = if samples.iter().any(|s| s.z_meas_mm.is_some()) {
+        let mut imaging = image_samples(&samples, &options).context("imaging the scan")?;
+        imaging.score_progressive(truth.as_ref(), scan_time_s);
+        Some(
+            write_outputs(
+                &imaging,
+                out_dir,
+                PlyEncoding::BinaryLittleEndian,
+                &missing_by_reason,
+            )
+            .context("writing the imaging outputs")?,
         )
-        .context("writing points.ply")?;
-    }
-    let xyz: Vec<[f64; 3]> = points.iter().map(|p| [p.x_mm, p.y_mm, p.z_mm]).collect();
-    let spec = GridSpec::covering(xyz.iter().map(|p| (p[0], p[1])), scenario.imaging.pitch_mm).ok();
-    let height_map = spec.map(|spec| {
-        grid_points(
-            xyz.iter().map(|p| (p[0], p[1], p[2])),
-            spec,
-            GridMethod::default(),
-        )
-    });
-    if let Some(map) = &height_map {
-        // Cells drawn 4 pixels wide: a 0.1 mm grid over a 12 mm field is a readable 480 px.
-        map.write_png(&out_dir.join("height_map.png"), 4)
-            .context("writing height_map.png")?;
-        let csv = std::fs::File::create(out_dir.join("height_map.csv"))
-            .context("writing height_map.csv")?;
-        map.write_csv(std::io::BufWriter::new(csv))
-            .context("writing height_map.csv")?;
-    }
-    let feature = scenario
-        .imaging
-        .feature
-        .map(|params| feature_height(&xyz, &params).map_err(|error| error.to_string()));
-    let truth = super::truth::TrueSurface::from_scene(scene)
-        .map_err(|error| anyhow::anyhow!("scene {}: surface: {error}", scene.name))?;
-    let progressive = progressive_error(
-        points,
-        spec,
-        record.periods_done as f64 * record.angles.period_s(),
-        scenario.imaging.progressive_steps,
-        truth.as_ref(),
-    );
-    write_plots(record, &progressive, out_dir)?;
+    } else {
+        None
+    };
+    write_tracking_plot(record, out_dir)?;
     let end = match &record.stopped_by {
         None => ScanEnd::Complete,
         Some(error) => ScanEnd::Stopped(error.to_string()),
     };
-    let figures = scenario.trajectory.figures(height_map.as_ref().map(|m| {
+    let figures = scenario.trajectory.figures(imaging.as_ref().map(|m| {
         (
-            m.spec.nx as f64 * m.spec.pitch_mm,
-            m.spec.ny as f64 * m.spec.pitch_mm,
+            m.grid.nx as f64 * m.grid.pitch_mm,
+            m.grid.ny as f64 * m.grid.pitch_mm,
         )
     }));
     let report = serde_json::json!({
         "scenario": {
             "name": scenario.name,
             "file": scenario.path.display().to_string(),
-            "scene": scenario.scene.display().to_string(),
+            "scene": scenario.scene.as_ref().map(|p| p.display().to_string()),
+            "truth": scenario.truth_scene().map(|p| p.display().to_string()),
             "controller": scenario.controller.display().to_string(),
             "seed": scenario.seed,
             "duration_s": scenario.duration_s,
             "timing": scenario.timing,
             "links": scenario.links,
-            "reconstruction": scenario.imaging.reconstruction.name(),
         },
+        "rig": rig.to_json(),
         "outcome": match &end {
             ScanEnd::Complete => serde_json::json!({"complete": true}),
             ScanEnd::Stopped(why) => serde_json::json!({"complete": false, "stopped_by": why}),
         },
-        "active_plant_parts": scene.parts,
         "periods": {
             "planned": record.periods_planned,
             "done": record.periods_done,
@@ -196,22 +197,9 @@ pub fn write(
             "sensor_samples": counted.len(),
             "paired": samples.len(),
             "outside_the_angle_record": unpaired,
-            "points": points.len(),
-            "missing_distances": reconstruction.missing_samples,
             "sensor_clock": clock,
         },
-        "height_map": height_map.as_ref().map(|m| serde_json::json!({
-            "nx": m.spec.nx, "ny": m.spec.ny, "pitch_mm": m.spec.pitch_mm,
-            "coverage": m.coverage_fraction(),
-        })),
-        "feature": feature.map(|f| match f {
-            Ok(f) => serde_json::json!({
-                "height_mm": f.height_mm, "std_mm": f.std_mm, "median_mm": f.median_mm,
-                "points": f.points,
-            }),
-            Err(error) => serde_json::json!({ "error": error }),
-        }),
-        "reconstruction_error_vs_scan_time": progressive,
+        "imaging": imaging,
         "links": {
             "mirror": run.mirror_counters,
             "sensor": sensor_counters,
@@ -252,87 +240,8 @@ fn estimate_sensor_clock(
     }
 }
 
-/// One point of the reconstruction error against scan time.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct ProgressivePoint {
-    /// Scan time, s.
-    pub scan_time_s: f64,
-    /// Fraction of the grid's cells measured by then.
-    pub coverage: f64,
-    /// RMS of (measured - true) surface height over the measured cells, mm (dominated by the
-    /// cells that straddle an edge).
-    pub rms_error_mm: Option<f64>,
-    /// Median of |measured - true| over the measured cells, mm (the typical cell).
-    pub median_abs_error_mm: Option<f64>,
-}
-
-fn progressive_error(
-    points: &[crate::imaging::reconstruct::ScanPoint],
-    spec: Option<GridSpec>,
-    scan_time_s: f64,
-    steps: usize,
-    truth: Option<&super::truth::TrueSurface>,
-) -> Vec<ProgressivePoint> {
-    let Some(spec) = spec else {
-        return Vec::new();
-    };
-    (1..=steps)
-        .map(|i| {
-            let until = scan_time_s * i as f64 / steps as f64;
-            let map = grid_points(
-                points
-                    .iter()
-                    .filter(|p| p.t_s <= until)
-                    .map(|p| (p.x_mm, p.y_mm, p.z_mm)),
-                spec,
-                GridMethod::default(),
-            );
-            let errors = truth
-                .map(|t| errors_against_truth(&map, t))
-                .unwrap_or_default();
-            ProgressivePoint {
-                scan_time_s: until,
-                coverage: map.coverage_fraction(),
-                rms_error_mm: rms(&errors),
-                median_abs_error_mm: median_abs(errors),
-            }
-        })
-        .collect()
-}
-
-/// (measured - true) height of every measured cell where the truth is known, mm.
-fn errors_against_truth(map: &HeightMap, truth: &super::truth::TrueSurface) -> Vec<f64> {
-    let mut errors = Vec::new();
-    for iy in 0..map.spec.ny {
-        for ix in 0..map.spec.nx {
-            let Some(h) = map.heights_mm[map.spec.index(ix, iy)] else {
-                continue;
-            };
-            let (x, y) = map.spec.centre_mm(ix, iy);
-            if let Some(z) = truth.z_mm(x, y) {
-                errors.push(h - z);
-            }
-        }
-    }
-    errors
-}
-
-fn rms(errors: &[f64]) -> Option<f64> {
-    (!errors.is_empty())
-        .then(|| (errors.iter().map(|e| e * e).sum::<f64>() / errors.len() as f64).sqrt())
-}
-
-fn median_abs(errors: Vec<f64>) -> Option<f64> {
-    let mut magnitudes: Vec<f64> = errors.into_iter().map(f64::abs).collect();
-    magnitudes.sort_by(f64::total_cmp);
-    magnitudes.get(magnitudes.len() / 2).copied()
-}
-
-fn write_plots(
-    record: &LoopRecord,
-    progressive: &[ProgressivePoint],
-    out_dir: &Path,
-) -> anyhow::Result<()> {
+/// `tracking.svg`: the measured angles and the tracking error against loop time.
+fn write_tracking_plot(record: &LoopRecord, out_dir: &Path) -> anyhow::Result<()> {
     let period_s = record.angles.period_s();
     let readings = record.angles.readings_rad();
     let errors = record.tracking.errors_rad();
@@ -371,45 +280,6 @@ fn write_plots(
             },
         ];
         draw_charts(&out_dir.join("tracking.svg"), &charts).context("writing tracking.svg")?;
-    }
-    let error_series = |label: &str, pick: fn(&ProgressivePoint) -> Option<f64>| Series {
-        label: label.into(),
-        points: progressive
-            .iter()
-            .filter_map(|p| pick(p).map(|e| (p.scan_time_s, e)))
-            .collect(),
-        markers: true,
-    };
-    let rms_series = error_series("RMS", |p| p.rms_error_mm);
-    let median_series = error_series("median |error|", |p| p.median_abs_error_mm);
-    if !progressive.is_empty() {
-        let mut charts = vec![Chart {
-            title: "Coverage against scan time".into(),
-            x_label: "scan time (s)".into(),
-            y_label: "measured cells (fraction)".into(),
-            x_axis: Axis::Linear,
-            y_axis: Axis::Linear,
-            series: vec![Series {
-                label: "coverage".into(),
-                points: progressive
-                    .iter()
-                    .map(|p| (p.scan_time_s, p.coverage))
-                    .collect(),
-                markers: true,
-            }],
-        }];
-        if !rms_series.points.is_empty() {
-            charts.push(Chart {
-                title: "Reconstruction error against scan time".into(),
-                x_label: "scan time (s)".into(),
-                y_label: "height error (mm)".into(),
-                x_axis: Axis::Linear,
-                y_axis: Axis::Log,
-                series: vec![rms_series, median_series],
-            });
-        }
-        draw_charts(&out_dir.join("progressive.svg"), &charts)
-            .context("writing progressive.svg")?;
     }
     Ok(())
 }

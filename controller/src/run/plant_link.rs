@@ -53,6 +53,7 @@ impl LinkedPlant {
         let plan = LinkPlan {
             fsm: fsm.clone(),
             sensor: None,
+            sensor_rate_hz: None,
             spawn_emulator: false,
             emulator: emulator.map(Path::to_owned),
             scene,

@@ -1,6 +1,12 @@
 //! A scenario file (`fixtures/scenarios/*.json`): everything one `scanhil scan` needs: the
-//! scene the emulator serves, the controller settings, the trajectory, the links, the timing
-//! mode, the duration and the seed, and how to image the result.
+//! rig it runs on, the controller settings, the trajectory, the links, the timing mode, the
+//! duration and the seed, and how to image the result; for emulated devices the scene the
+//! emulator serves, and optionally a true surface to score the reconstruction against.
+//!
+//! The host reads the rig, never the scene: the scene's path is only handed to
+//! `scanhil-emulator serve` when the host starts it. A scan of real devices names a rig and no
+//! scene; a `truth` (a scene file whose `surface` describes the object on the bench) enables
+//! the error figures. For an emulated scan the truth defaults to the emulator's scene.
 //!
 //! Relative paths inside a scenario are resolved against the scenario file's directory.
 
@@ -10,6 +16,8 @@ use scanhil_geometry::GeometryModel;
 use serde::Deserialize;
 
 use crate::imaging::feature::FeatureParams;
+use crate::imaging::pipeline::MAX_PROGRESSIVE_STEPS;
+use crate::rig::{Rig, RigError};
 use crate::trajectory::Trajectory;
 
 /// A loaded, checked scenario with absolute paths.
@@ -21,8 +29,12 @@ pub struct Scenario {
     pub name: String,
     /// Free text.
     pub description: String,
-    /// The scene file the emulator serves (also the ground truth for scoring).
-    pub scene: PathBuf,
+    /// The rig the host runs against.
+    pub rig: Rig,
+    /// The scene file the emulator serves, for emulated devices.
+    pub scene: Option<PathBuf>,
+    /// The scene file whose surface scores the reconstruction (default: `scene`).
+    pub truth: Option<PathBuf>,
     /// The controller settings file.
     pub controller: PathBuf,
     /// The reference the mirror follows.
@@ -135,7 +147,8 @@ pub struct ImagingConfig {
     pub reconstruction: GeometryModel,
     /// The feature whose height is measured (the Duplo stud), if any.
     pub feature: Option<FeatureParams>,
-    /// Points of the progressive-imaging curve (reconstruction error against scan time).
+    /// Points of the progressive-imaging curve (reconstruction error against scan time),
+    /// 1 to [`MAX_PROGRESSIVE_STEPS`].
     pub progressive_steps: usize,
 }
 
@@ -173,6 +186,14 @@ pub enum ScenarioError {
         /// What serde said.
         message: String,
     },
+    /// The rig description could not be loaded.
+    #[error("{path}: rig: {source}")]
+    Rig {
+        /// The scenario file.
+        path: PathBuf,
+        /// The rig's own error (file, line, field).
+        source: RigError,
+    },
     /// A field has a value that cannot run.
     #[error("{path}: field `{field}`: {reason}")]
     Invalid {
@@ -191,7 +212,11 @@ struct ScenarioFile {
     name: String,
     #[serde(default)]
     description: String,
-    scene: PathBuf,
+    rig: PathBuf,
+    #[serde(default)]
+    scene: Option<PathBuf>,
+    #[serde(default)]
+    truth: Option<PathBuf>,
     controller: PathBuf,
     trajectory: Trajectory,
     duration_s: f64,
@@ -261,12 +286,38 @@ impl Scenario {
                 format!("{pitch} mm must be positive and finite"),
             ));
         }
+        let steps = file.imaging.progressive_steps;
+        if !(1..=MAX_PROGRESSIVE_STEPS).contains(&steps) {
+            return Err(invalid(
+                "imaging.progressive_steps",
+                format!("{steps} is not between 1 and {MAX_PROGRESSIVE_STEPS}"),
+            ));
+        }
         let base = origin.parent().unwrap_or(Path::new("."));
+        let scene = file.scene.map(|scene| base.join(scene));
+        let links_are_emulated = file.links.spawn_emulator
+            || file.links.fsm == NodeLink::Pty
+            || file.links.sensor == NodeLink::Pty;
+        if scene.is_none() && links_are_emulated {
+            return Err(invalid(
+                "scene",
+                "emulated devices (`pty` links or `spawn_emulator`) need the scene the \
+                 emulator serves; a scan of real devices sets both links to their URIs and \
+                 `spawn_emulator` to false"
+                    .into(),
+            ));
+        }
+        let rig = Rig::load(&base.join(&file.rig)).map_err(|source| ScenarioError::Rig {
+            path: origin.to_owned(),
+            source,
+        })?;
         Ok(Scenario {
             path: origin.to_owned(),
             name: file.name,
             description: file.description,
-            scene: base.join(file.scene),
+            rig,
+            truth: file.truth.map(|truth| base.join(truth)),
+            scene,
             controller: base.join(file.controller),
             trajectory: file.trajectory,
             duration_s: file.duration_s,
@@ -275,5 +326,11 @@ impl Scenario {
             links: file.links,
             imaging: file.imaging,
         })
+    }
+
+    /// The scene file whose surface is the truth: `truth`, else the emulator's `scene`.
+    #[must_use]
+    pub fn truth_scene(&self) -> Option<&Path> {
+        self.truth.as_deref().or(self.scene.as_deref())
     }
 }

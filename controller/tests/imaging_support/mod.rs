@@ -1,12 +1,8 @@
-//! Shared by the imaging tests: the paper's trajectories as angle functions, a Duplo-like
-//! stud scene with a known surface, and the `scanhil reconstruct` command.
+//! Shared by the imaging tests and benches (of this crate and of `scanhil-lab`): the paper's
+//! trajectories as angle functions and a Duplo-like stud scene with a known surface. Library
+//! calls only, so another crate's tests can include it.
 
 #![allow(dead_code)]
-
-use std::path::Path;
-use std::process::Command;
-
-use scanhil_controller::imaging::pipeline::ImagingReport;
 
 use scanhil_controller::imaging::progressive::HeightFieldScene;
 use scanhil_controller::trajectory::{SensingAxis, Trajectory};
@@ -81,30 +77,4 @@ pub fn stud_scene(model: GeometryModel) -> HeightFieldScene<impl Fn(f64, f64) ->
         surface: stud_surface(),
         range_mm: (70.0, 170.0),
     }
-}
-
-/// `scanhil reconstruct <input> --out-dir <out_dir>`, ready for more arguments.
-pub fn scanhil_reconstruct(input: &Path, out_dir: &Path) -> Command {
-    let mut command = Command::new(env!("CARGO_BIN_EXE_scanhil"));
-    command.args([
-        "reconstruct",
-        input.to_str().unwrap(),
-        "--out-dir",
-        out_dir.to_str().unwrap(),
-    ]);
-    command
-}
-
-/// Runs a `scanhil reconstruct` command that must succeed (it fails the test with the
-/// command's output otherwise): its stdout and the `report.json` it wrote into `out_dir`.
-pub fn reconstruct_succeeds(command: &mut Command, out_dir: &Path) -> (String, ImagingReport) {
-    let run = command.output().unwrap();
-    let stdout = String::from_utf8_lossy(&run.stdout).into_owned();
-    assert!(
-        run.status.success(),
-        "{stdout}{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let report = std::fs::read_to_string(out_dir.join("report.json")).unwrap();
-    (stdout, serde_json::from_str(&report).unwrap())
 }

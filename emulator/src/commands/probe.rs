@@ -11,9 +11,9 @@ use serde::Serialize;
 use scanhil_emulator::optics::{OpticalOutcome, Optics};
 use scanhil_emulator::scene::{Part, Scene};
 use scanhil_emulator::sensor::Ild2300;
-use scanhil_emulator::surface::Surface;
 use scanhil_protocol::ild::IldValue;
 use scanhil_protocol::plant_units::SensingPair;
+use scanhil_scene::surface::Surface;
 
 use super::print_or_broken_pipe;
 
@@ -251,8 +251,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use scanhil_emulator::surface::duplo;
     use scanhil_protocol::ild::MeasuringRange;
+    use scanhil_scene::surface::duplo;
 
     fn fixture(name: &str) -> Scene {
         let path = Path::new(env!("CARGO_MANIFEST_DIR"))

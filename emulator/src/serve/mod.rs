@@ -100,6 +100,9 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
             "scene": scene.name,
             "timing": config.timing,
             "period_s": plant.period_s(),
+            "sensor_measuring_rate_hz": scene
+                .has(crate::scene::Part::Sensor)
+                .then(|| scene.sensor.unwrap_or_default().measuring_rate_hz),
             "active_parts": plant.active_parts(),
         });
         let Some(fsm_uri) = config.fsm.as_deref() else {

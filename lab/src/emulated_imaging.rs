@@ -8,16 +8,18 @@ use std::path::Path;
 use scanhil_emulator::optics::{OpticalOutcome, Optics};
 use scanhil_emulator::scene::{Part, Scene};
 use scanhil_emulator::sensor::Ild2300;
-use scanhil_emulator::surface::Surface;
 use scanhil_protocol::ild::IldValue;
 use scanhil_protocol::plant_units::SensingPair;
+use scanhil_scene::surface::Surface;
 
-use super::progressive::ScanScene;
-use super::reconstruct::ScanSample;
+use scanhil_controller::imaging::progressive::ScanScene;
+use scanhil_controller::imaging::reconstruct::ScanSample;
 
-impl ScanScene for Optics {
+/// The emulator's optics as a scan scene (the sensor's noise and quantisation left out).
+impl ScanScene for EmulatedScanner {
     fn z_meas_mm(&self, d_alpha_rad: f64, d_beta_rad: f64) -> Option<f64> {
         match self
+            .optics
             .observe(SensingPair {
                 alpha: d_alpha_rad,
                 beta: d_beta_rad,
@@ -30,7 +32,7 @@ impl ScanScene for Optics {
     }
 
     fn true_z_mm(&self, x_mm: f64, y_mm: f64) -> Option<f64> {
-        self.surface().height_at(x_mm, y_mm)
+        self.optics.surface().height_at(x_mm, y_mm)
     }
 }
 

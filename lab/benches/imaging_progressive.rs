@@ -2,7 +2,7 @@
 //! binary anyone can rerun:
 //!
 //! ```text
-//! cargo bench -p scanhil-controller --bench imaging_progressive -- [--out DIR]
+//! cargo bench -p scanhil-lab --bench imaging_progressive -- [--out DIR]
 //! ```
 //!
 //! Simulates one second of ideal scanning (perfect tracking, 20 kHz sensor, no noise) of a
@@ -23,14 +23,13 @@
 //!   shading, 130 um spot, sensor noise): the stud's height and spread for each trajectory
 //!   and reconstruction model, and the height maps above the base plane.
 
-#[path = "../tests/imaging_support/mod.rs"]
+#[path = "../../controller/tests/imaging_support/mod.rs"]
 mod imaging_support;
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use imaging_support::{lissajous, raster, stud_scene};
-use scanhil_controller::imaging::emulated::EmulatedScanner;
 use scanhil_controller::imaging::feature::FeatureParams;
 use scanhil_controller::imaging::fill::FillMethod;
 use scanhil_controller::imaging::grid::{GridMethod, GridSpec};
@@ -42,6 +41,7 @@ use scanhil_controller::imaging::progressive::{
 use scanhil_controller::imaging::reconstruct::reconstruct;
 use scanhil_controller::imaging::recording::write_recording_csv;
 use scanhil_geometry::{GeometryModel, Scanner};
+use scanhil_lab::emulated_imaging::EmulatedScanner;
 
 const SAMPLE_RATE_HZ: f64 = 20_000.0;
 const PITCH_MM: f64 = 0.25;
@@ -198,7 +198,12 @@ fn duplo_feature_heights(out: &Path) -> anyhow::Result<()> {
                 ..ImagingOptions::default()
             };
             let imaging = image_samples(&samples, &options)?;
-            let f = imaging.feature.as_ref().expect("asked for a feature");
+            let f = imaging
+                .feature
+                .as_ref()
+                .expect("asked for a feature")
+                .as_ref()
+                .map_err(|error| anyhow::anyhow!("{error}"))?;
             let tilt_deg = f.plane.plane.tilt_rad().to_degrees();
             println!(
                 "  {name:<11} {:<16} {:>10.4} {:>7.4} {:>7} {:>8} {:>15.4}",

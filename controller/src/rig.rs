@@ -1,0 +1,388 @@
+//! A rig description (`fixtures/rigs/*.json`): what the host must know of the bench it runs
+//! against, real or emulated, and nothing of how an emulator would model it.
+//!
+//! - `control_rate_hz`: the loop rate the mirror node runs at;
+//! - `scanner`: the mechanical setup (paper eq. 1-3's `y_FSM`, `z_FSM`, `alpha` and the
+//!   receiver) and the calibration of the angle sensor and the distance;
+//! - `sensor`: the ILD 2300's measuring rate and range, or `null` for a mirror-only rig.
+//!
+//! A scan of real devices needs only this file (and a scenario naming it); an emulator's scene
+//! file is for the emulator alone. When the host starts the emulator it checks the emulated
+//! devices against the rig (control rate, whether a sensor is served and at what rate), as it
+//! checks a real sensor's read-back configuration, and refuses a mismatch naming both values.
+
+use std::path::{Path, PathBuf};
+
+use scanhil_geometry::ScannerSetup;
+use scanhil_protocol::ild::MeasuringRange;
+use scanhil_protocol::ild::command::MEASURING_RATES_KHZ;
+use serde::{Deserialize, Serialize};
+
+use crate::imaging::reconstruct::ScanSample;
+
+/// A loaded, checked rig description.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rig {
+    /// Where it was loaded from.
+    pub path: PathBuf,
+    /// Short name (reports).
+    pub name: String,
+    /// Free text.
+    pub description: String,
+    /// The control loop's rate, Hz.
+    pub control_rate_hz: f64,
+    /// The scanner's geometry and calibration.
+    pub scanner: RigScanner,
+    /// The distance sensor, if the rig has one.
+    pub sensor: Option<RigSensor>,
+}
+
+/// The scanner's geometry and calibration.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RigScanner {
+    /// Where mirror and receiver sit relative to the laser (defaults: the paper's setup).
+    pub setup: ScannerSetup,
+    /// Corrections applied to every sample before reconstruction.
+    pub calibration: Calibration,
+}
+
+/// Corrections of the measured angles and distance: a true deflection is
+/// `gain * (reading - offset)`, a true distance `z_meas + distance_offset_mm`. The identity
+/// (the default) leaves every value bit for bit as it was.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Calibration {
+    /// The alpha angle sensor's reading at zero deflection, urad.
+    pub alpha_offset_urad: f64,
+    /// The beta angle sensor's reading at zero deflection, urad.
+    pub beta_offset_urad: f64,
+    /// True alpha deflection per unit of reading.
+    pub alpha_gain: f64,
+    /// True beta deflection per unit of reading.
+    pub beta_gain: f64,
+    /// Added to every measured distance, mm.
+    pub distance_offset_mm: f64,
+}
+
+impl Default for Calibration {
+    fn default() -> Calibration {
+        Calibration {
+            alpha_offset_urad: 0.0,
+            beta_offset_urad: 0.0,
+            alpha_gain: 1.0,
+            beta_gain: 1.0,
+            distance_offset_mm: 0.0,
+        }
+    }
+}
+
+impl Calibration {
+    /// The sample with its angles and distance corrected.
+    #[must_use]
+    pub fn apply(&self, sample: ScanSample) -> ScanSample {
+        ScanSample {
+            t_s: sample.t_s,
+            d_alpha_rad: self.alpha_gain * (sample.d_alpha_rad - self.alpha_offset_urad * 1e-6),
+            d_beta_rad: self.beta_gain * (sample.d_beta_rad - self.beta_offset_urad * 1e-6),
+            z_meas_mm: sample.z_meas_mm.map(|z| z + self.distance_offset_mm),
+        }
+    }
+
+    fn check(&self) -> Result<(), (&'static str, String)> {
+        for (field, value) in [
+            (
+                "scanner.calibration.alpha_offset_urad",
+                self.alpha_offset_urad,
+            ),
+            (
+                "scanner.calibration.beta_offset_urad",
+                self.beta_offset_urad,
+            ),
+            (
+                "scanner.calibration.distance_offset_mm",
+                self.distance_offset_mm,
+            ),
+        ] {
+            if !value.is_finite() {
+                return Err((field, format!("{value} must be finite")));
+            }
+        }
+        for (field, gain) in [
+            ("scanner.calibration.alpha_gain", self.alpha_gain),
+            ("scanner.calibration.beta_gain", self.beta_gain),
+        ] {
+            if !(gain.is_finite() && gain > 0.0) {
+                return Err((field, format!("{gain} must be positive and finite")));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The distance sensor: an ILD 2300.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RigSensor {
+    /// Measuring rate, Hz: one of the ILD 2300's rates (1.5, 2.5, 5, 10, 20, 30, 49.14 kHz).
+    pub measuring_rate_hz: f64,
+    /// Start of the measuring range (SMR), mm from the sensor's reference.
+    pub range_start_mm: f64,
+    /// Length of the measuring range (MR), mm.
+    pub range_span_mm: f64,
+}
+
+impl RigSensor {
+    /// The ILD 2300-100 at 20 kHz, as in the paper.
+    pub const ILD2300_100_AT_20_KHZ: RigSensor = RigSensor {
+        measuring_rate_hz: 20_000.0,
+        range_start_mm: 70.0,
+        range_span_mm: 100.0,
+    };
+
+    /// The measuring range, for converting raw values to mm.
+    #[must_use]
+    pub fn range(&self) -> MeasuringRange {
+        MeasuringRange {
+            start_mm: self.range_start_mm,
+            span_mm: self.range_span_mm,
+        }
+    }
+}
+
+/// Why a rig description could not be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum RigError {
+    /// The file could not be read.
+    #[error("cannot read rig {path}: {source}")]
+    Io {
+        /// The rig file.
+        path: PathBuf,
+        /// The OS error.
+        source: std::io::Error,
+    },
+    /// The JSON did not parse or did not match the format.
+    #[error("{path}:{line}:{column}: {message}")]
+    Parse {
+        /// The rig file.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What serde said.
+        message: String,
+    },
+    /// A field has a value no rig can have.
+    #[error("{path}: field `{field}`: {reason}")]
+    Invalid {
+        /// The rig file.
+        path: PathBuf,
+        /// The offending field.
+        field: &'static str,
+        /// Why.
+        reason: String,
+    },
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RigFile {
+    name: String,
+    #[serde(default)]
+    description: String,
+    control_rate_hz: f64,
+    #[serde(default)]
+    scanner: RigScanner,
+    /// Required, `null` for none: a forgotten sensor section is an error, not "no sensor".
+    #[serde(deserialize_with = "Option::deserialize")]
+    sensor: Option<RigSensor>,
+}
+
+impl Rig {
+    /// Reads, parses and checks a rig description.
+    ///
+    /// # Errors
+    /// [`RigError`] naming the file and, for parse errors, the line and column.
+    pub fn load(path: &Path) -> Result<Rig, RigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| RigError::Io {
+            path: path.to_owned(),
+            source,
+        })?;
+        Rig::from_json_str(&text, path)
+    }
+
+    /// Parses and checks a rig description; `origin` names it in errors.
+    ///
+    /// # Errors
+    /// [`RigError::Parse`] or [`RigError::Invalid`].
+    pub fn from_json_str(text: &str, origin: &Path) -> Result<Rig, RigError> {
+        let file: RigFile = serde_json::from_str(text).map_err(|err| RigError::Parse {
+            path: origin.to_owned(),
+            line: err.line(),
+            column: err.column(),
+            message: err.to_string(),
+        })?;
+        let invalid = |(field, reason): (&'static str, String)| RigError::Invalid {
+            path: origin.to_owned(),
+            field,
+            reason,
+        };
+        let rate = file.control_rate_hz;
+        if !(rate.is_finite() && rate > 0.0) {
+            return Err(invalid((
+                "control_rate_hz",
+                format!("{rate} Hz must be positive and finite"),
+            )));
+        }
+        file.scanner
+            .setup
+            .validate()
+            .map_err(|error| invalid(("scanner.setup", error.to_string())))?;
+        file.scanner.calibration.check().map_err(invalid)?;
+        if let Some(sensor) = &file.sensor {
+            check_sensor(sensor).map_err(invalid)?;
+        }
+        Ok(Rig {
+            path: origin.to_owned(),
+            name: file.name,
+            description: file.description,
+            control_rate_hz: rate,
+            scanner: file.scanner,
+            sensor: file.sensor,
+        })
+    }
+
+    /// The control period, s.
+    #[must_use]
+    pub fn period_s(&self) -> f64 {
+        1.0 / self.control_rate_hz
+    }
+
+    /// The rig as JSON for reports.
+    #[must_use]
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "name": self.name,
+            "file": self.path.display().to_string(),
+            "control_rate_hz": self.control_rate_hz,
+            "scanner": self.scanner,
+            "sensor": self.sensor,
+        })
+    }
+}
+
+fn check_sensor(sensor: &RigSensor) -> Result<(), (&'static str, String)> {
+    let rate = sensor.measuring_rate_hz;
+    if !MEASURING_RATES_KHZ
+        .iter()
+        .any(|khz| (khz * 1e3 - rate).abs() < 1e-6)
+    {
+        return Err((
+            "sensor.measuring_rate_hz",
+            format!("{rate} Hz is not an ILD 2300 rate (kHz: {MEASURING_RATES_KHZ:?})"),
+        ));
+    }
+    if !(sensor.range_start_mm.is_finite() && sensor.range_start_mm >= 0.0) {
+        return Err((
+            "sensor.range_start_mm",
+            format!(
+                "{} mm must be finite and not negative",
+                sensor.range_start_mm
+            ),
+        ));
+    }
+    if !(sensor.range_span_mm.is_finite() && sensor.range_span_mm > 0.0) {
+        return Err((
+            "sensor.range_span_mm",
+            format!("{} mm must be positive and finite", sensor.range_span_mm),
+        ));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<Rig, RigError> {
+        Rig::from_json_str(text, Path::new("rig.json"))
+    }
+
+    #[test]
+    fn the_shipped_rigs_load() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/rigs");
+        let paper = Rig::load(&dir.join("paper-bench.json")).unwrap();
+        assert_eq!(paper.sensor, Some(RigSensor::ILD2300_100_AT_20_KHZ));
+        assert_eq!(paper.scanner.setup, ScannerSetup::default());
+        assert!((paper.period_s() - 50e-6).abs() < 1e-15);
+        let mirror_only = Rig::load(&dir.join("paper-mirror-only.json")).unwrap();
+        assert_eq!(mirror_only.sensor, None);
+    }
+
+    #[test]
+    fn a_rate_the_sensor_does_not_have_is_refused_by_field() {
+        let error = parse(
+            r#"{"name": "r", "control_rate_hz": 20000,
+                "sensor": {"measuring_rate_hz": 12000, "range_start_mm": 70, "range_span_mm": 100}}"#,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(error.contains("sensor.measuring_rate_hz"), "{error}");
+        assert!(error.contains("12000"), "{error}");
+    }
+
+    #[test]
+    fn bad_numbers_name_their_field() {
+        for (text, field) in [
+            (
+                r#"{"name": "r", "control_rate_hz": 0, "sensor": null}"#,
+                "control_rate_hz",
+            ),
+            (
+                r#"{"name": "r", "control_rate_hz": 1000, "sensor": null,
+                    "scanner": {"calibration": {"alpha_gain": -1}}}"#,
+                "scanner.calibration.alpha_gain",
+            ),
+            (
+                r#"{"name": "r", "control_rate_hz": 1000, "sensor": null,
+                    "scanner": {"setup": {"y_fsm_mm": -5}}}"#,
+                "scanner.setup",
+            ),
+        ] {
+            let error = parse(text).unwrap_err().to_string();
+            assert!(error.contains(field), "{field}: {error}");
+        }
+    }
+
+    #[test]
+    fn a_missing_sensor_section_is_an_error_not_a_default() {
+        let error = parse(r#"{"name": "r", "control_rate_hz": 1000}"#)
+            .unwrap_err()
+            .to_string();
+        assert!(error.contains("sensor"), "{error}");
+        assert!(error.starts_with("rig.json:"), "{error}");
+    }
+
+    #[test]
+    fn the_identity_calibration_changes_no_bit_and_others_correct() {
+        let sample = ScanSample {
+            t_s: 0.25,
+            d_alpha_rad: 0.012_345_678_9,
+            d_beta_rad: -0.009_876_543_21,
+            z_meas_mm: Some(131.123_456_7),
+        };
+        assert_eq!(Calibration::default().apply(sample), sample);
+        let calibration = Calibration {
+            alpha_offset_urad: 100.0,
+            beta_offset_urad: -50.0,
+            alpha_gain: 2.0,
+            beta_gain: 0.5,
+            distance_offset_mm: -1.0,
+        };
+        let corrected = calibration.apply(sample);
+        assert!((corrected.d_alpha_rad - 2.0 * (sample.d_alpha_rad - 1e-4)).abs() < 1e-15);
+        assert!((corrected.d_beta_rad - 0.5 * (sample.d_beta_rad + 5e-5)).abs() < 1e-15);
+        assert!((corrected.z_meas_mm.unwrap() - 130.123_456_7).abs() < 1e-12);
+    }
+}

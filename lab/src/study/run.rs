@@ -1,0 +1,89 @@
+//! Running a study's variants in this process, across every core: a pool of worker threads
+//! takes the variants in order, each runs its scenario through the one-process loop into its
+//! result folder; a progress bar counts them (on a terminal only).
+
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicUsize, Ordering};
+
+use scanhil_controller::run::scenario::Scenario;
+
+use super::plan::describe;
+use super::plan::Study;
+use super::table::RESULT_DIR;
+
+/// How a variant's run went.
+#[derive(Debug, Clone, PartialEq)]
+pub enum VariantOutcome {
+    /// The scan ran (complete or stopped early: its report says which).
+    Ran,
+    /// The scan could not run; the message says why.
+    Failed(String),
+}
+
+/// Runs the variants whose scenario files are `scenarios` (in the order of
+/// [`Study::write_variants`]) on `jobs` threads (at least 1); each writes
+/// `<its folder>/result/`. Returns each variant's outcome in order.
+#[must_use]
+pub fn run_variants(study: &Study, scenarios: &[PathBuf], jobs: usize) -> Vec<VariantOutcome> {
+    let next = AtomicUsize::new(0);
+    let outcomes: Mutex<Vec<Option<VariantOutcome>>> = Mutex::new(vec![None; scenarios.len()]);
+    let bar = indicatif::ProgressBar::new(scenarios.len() as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template(
+            "{prefix} [{bar:40}] {pos}/{len} variants, {elapsed} (eta {eta})",
+        )
+        .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
+        .progress_chars("=> "),
+    );
+    bar.set_prefix(study.name.clone());
+    std::thread::scope(|scope| {
+        for _ in 0..jobs.max(1).min(scenarios.len().max(1)) {
+            scope.spawn(|| {
+                loop {
+                    let i = next.fetch_add(1, Ordering::Relaxed);
+                    let Some(scenario) = scenarios.get(i) else {
+                        break;
+                    };
+                    let outcome = run_one(scenario).unwrap_or_else(|error| {
+                        let message = format!("{error:#}");
+                        bar.println(format!(
+                            "variant {} ({}): {message}",
+                            i + 1,
+                            describe(&study.variants[i])
+                        ));
+                        VariantOutcome::Failed(message)
+                    });
+                    if let Ok(mut outcomes) = outcomes.lock() {
+                        outcomes[i] = Some(outcome);
+                    }
+                    bar.inc(1);
+                }
+            });
+        }
+    });
+    bar.finish_and_clear();
+    outcomes
+        .into_inner()
+        .unwrap_or_default()
+        .into_iter()
+        .map(|o| o.unwrap_or_else(|| VariantOutcome::Failed("not run".into())))
+        .collect()
+}
+
+/// Runs one variant's scenario in process into `<its folder>/result/`.
+fn run_one(scenario_path: &Path) -> anyhow::Result<VariantOutcome> {
+    let scenario = Scenario::load(scenario_path)?;
+    let out_dir = scenario_path
+        .parent()
+        .unwrap_or(Path::new("."))
+        .join(RESULT_DIR);
+    crate::in_process::run(&scenario, &out_dir)?;
+    Ok(VariantOutcome::Ran)
+}
+
+/// The number of worker threads by default: one per core.
+#[must_use]
+pub fn default_jobs() -> usize {
+    std::thread::available_parallelism().map_or(1, usize::from)
+}

@@ -1,0 +1,226 @@
+//! The study's table: one row per variant, read from its result folder's `report.json`, so
+//! a study run here and one run by a batch system give the same table. Written as
+//! `study.csv` and `study.json`.
+
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::Path;
+
+use anyhow::Context;
+use serde_json::Value;
+
+use super::plan::{Study, variant_dir};
+
+/// The result folder inside a variant's folder.
+pub const RESULT_DIR: &str = "result";
+
+/// One variant's figures.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Row {
+    /// 1-based variant number.
+    pub variant: usize,
+    /// The values the study set, by key.
+    pub parameters: BTreeMap<String, Value>,
+    /// Whether every planned period ran (`None`: no report).
+    pub complete: Option<bool>,
+    /// Why the variant has no figures or stopped early.
+    pub problem: Option<String>,
+    /// The feature (stud) height, mm.
+    pub stud_height_mm: Option<f64>,
+    /// Its standard deviation, mm.
+    pub stud_std_mm: Option<f64>,
+    /// Tracking error, rms over the second half, relative to the reference's peak: alpha.
+    pub tracking_rms_relative_alpha: Option<f64>,
+    /// The same for beta.
+    pub tracking_rms_relative_beta: Option<f64>,
+    /// Height-map cells measured, fraction.
+    pub coverage: Option<f64>,
+    /// Median |error| of the measured cells against the true surface, mm.
+    pub median_abs_error_mm: Option<f64>,
+    /// Wall time of the scan, s (as the runner measured it).
+    pub run_time_s: Option<f64>,
+}
+
+impl Row {
+    /// The row of variant `index` (0-based) from its report, or with the problem when the
+    /// report is missing or unreadable.
+    #[must_use]
+    pub fn from_result(study: &Study, out_dir: &Path, index: usize) -> Row {
+        let report_path = variant_dir(out_dir, index)
+            .join(RESULT_DIR)
+            .join("report.json");
+        let mut row = Row {
+            variant: index + 1,
+            parameters: study.variants[index].clone(),
+            complete: None,
+            problem: None,
+            stud_height_mm: None,
+            stud_std_mm: None,
+            tracking_rms_relative_alpha: None,
+            tracking_rms_relative_beta: None,
+            coverage: None,
+            median_abs_error_mm: None,
+            run_time_s: None,
+        };
+        let report = std::fs::read_to_string(&report_path)
+            .map_err(|error| format!("{}: {error}", report_path.display()))
+            .and_then(|text| {
+                serde_json::from_str::<Value>(&text)
+                    .map_err(|error| format!("{}: {error}", report_path.display()))
+            });
+        let report = match report {
+            Ok(report) => report,
+            Err(problem) => {
+                row.problem = Some(problem);
+                return row;
+            }
+        };
+        let number = |pointer: &str| report.pointer(pointer).and_then(Value::as_f64);
+        row.complete = report.pointer("/outcome/complete").and_then(Value::as_bool);
+        row.problem = report
+            .pointer("/outcome/stopped_by")
+            .and_then(Value::as_str)
+            .map(str::to_owned)
+            .or_else(|| {
+                report
+                    .pointer("/imaging/feature_error")
+                    .and_then(Value::as_str)
+                    .map(str::to_owned)
+            });
+        row.stud_height_mm = number("/imaging/feature/height_mm");
+        row.stud_std_mm = number("/imaging/feature/std_mm");
+        row.tracking_rms_relative_alpha = number("/tracking_error/second_half/alpha/rms_relative");
+        row.tracking_rms_relative_beta = number("/tracking_error/second_half/beta/rms_relative");
+        row.coverage = number("/imaging/coverage_fraction");
+        row.median_abs_error_mm = number("/imaging/truth_error/covered_median_abs_mm");
+        row.run_time_s = number("/run_time_s");
+        row
+    }
+}
+
+/// Reads every variant's result and writes `study.csv` and `study.json` into `out_dir`.
+///
+/// # Errors
+/// A table file that cannot be written. (A variant without a readable report is a row with
+/// its problem, not an error.)
+pub fn collect(study: &Study, out_dir: &Path) -> anyhow::Result<Vec<Row>> {
+    let rows: Vec<Row> = (0..study.variants.len())
+        .map(|i| Row::from_result(study, out_dir, i))
+        .collect();
+    let json_path = out_dir.join("study.json");
+    let json = serde_json::json!({
+        "study": study.name,
+        "file": study.path.display().to_string(),
+        "scenario": study.scenario.display().to_string(),
+        "rows": rows,
+    });
+    std::fs::write(
+        &json_path,
+        serde_json::to_string_pretty(&json).context("formatting study.json")? + "\n",
+    )
+    .with_context(|| format!("writing {}", json_path.display()))?;
+    let csv_path = out_dir.join("study.csv");
+    let mut csv = Vec::new();
+    write_csv(&mut csv, &study.keys(), &rows).context("formatting study.csv")?;
+    std::fs::write(&csv_path, csv).with_context(|| format!("writing {}", csv_path.display()))?;
+    Ok(rows)
+}
+
+/// The figure columns after the variant number and the parameters.
+const FIGURE_COLUMNS: [&str; 9] = [
+    "complete",
+    "stud_height_mm",
+    "stud_std_mm",
+    "tracking_rms_relative_alpha",
+    "tracking_rms_relative_beta",
+    "coverage",
+    "median_abs_error_mm",
+    "run_time_s",
+    "problem",
+];
+
+/// Writes the table as CSV (RFC 4180 quoting); empty cells where a figure is missing.
+///
+/// # Errors
+/// The writer's error.
+pub fn write_csv(out: &mut impl Write, keys: &[String], rows: &[Row]) -> std::io::Result<()> {
+    let header: Vec<String> = std::iter::once("variant".to_owned())
+        .chain(keys.iter().cloned())
+        .chain(FIGURE_COLUMNS.iter().map(|c| (*c).to_owned()))
+        .collect();
+    writeln!(out, "{}", header.iter().map(|h| quote(h)).collect::<Vec<_>>().join(","))?;
+    let figure = |v: Option<f64>| v.map_or(String::new(), |v| v.to_string());
+    for row in rows {
+        let mut cells = vec![row.variant.to_string()];
+        cells.extend(keys.iter().map(|k| match row.parameters.get(k) {
+            None => String::new(),
+            Some(Value::String(s)) => s.clone(),
+            Some(other) => other.to_string(),
+        }));
+        cells.push(row.complete.map_or(String::new(), |c| c.to_string()));
+        cells.extend(
+            [
+                row.stud_height_mm,
+                row.stud_std_mm,
+                row.tracking_rms_relative_alpha,
+                row.tracking_rms_relative_beta,
+                row.coverage,
+                row.median_abs_error_mm,
+                row.run_time_s,
+            ]
+            .map(figure),
+        );
+        cells.push(row.problem.clone().unwrap_or_default());
+        writeln!(out, "{}", cells.iter().map(|c| quote(c)).collect::<Vec<_>>().join(","))?;
+    }
+    Ok(())
+}
+
+/// A CSV cell, quoted when it holds a comma, a quote or a line break.
+fn quote(cell: &str) -> String {
+    if cell.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", cell.replace('"', "\"\""))
+    } else {
+        cell.to_owned()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn csv_quotes_what_needs_it_and_leaves_missing_figures_empty() {
+        let row = Row {
+            variant: 1,
+            parameters: BTreeMap::from([
+                ("scenario.seed".to_owned(), Value::from(3)),
+                ("scenario.controller".to_owned(), Value::from("/a,b.json")),
+            ]),
+            complete: Some(false),
+            problem: Some("link timeout: \"x\"".into()),
+            stud_height_mm: Some(4.66),
+            stud_std_mm: None,
+            tracking_rms_relative_alpha: None,
+            tracking_rms_relative_beta: None,
+            coverage: None,
+            median_abs_error_mm: None,
+            run_time_s: Some(0.5),
+        };
+        let keys = vec!["scenario.controller".to_owned(), "scenario.seed".to_owned()];
+        let mut out = Vec::new();
+        write_csv(&mut out, &keys, &[row]).unwrap();
+        let text = String::from_utf8(out).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(
+            lines[0],
+            "variant,scenario.controller,scenario.seed,complete,stud_height_mm,stud_std_mm,\
+             tracking_rms_relative_alpha,tracking_rms_relative_beta,coverage,\
+             median_abs_error_mm,run_time_s,problem"
+        );
+        assert_eq!(
+            lines[1],
+            "1,\"/a,b.json\",3,false,4.66,,,,,,0.5,\"link timeout: \"\"x\"\"\""
+        );
+    }
+}
