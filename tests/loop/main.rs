@@ -19,3 +19,5 @@ mod controller_watchdog;
 mod conformance;
 // Real time: statistics present and sane; bus-load refusal before a run.
 mod timing;
+// The host alone: a rig and no scene for devices it did not start; scenes checked against rigs.
+mod rig_alone;
