@@ -4,6 +4,7 @@
 //! # Layout
 //! - [`mirror_node`]: the mirror node as a protocol state machine around the plant (no I/O).
 //! - [`sensor_port`]: where the sensor's samples go (the ILD stream, or CAN Distance frames).
+//! - [`lockstep_node`]: the node's answers to the controller's frames in lockstep (no I/O).
 //! - [`lockstep`]: the controller's Step frame advances the plant one period.
 //! - [`realtime`]: this emulator is the clock master on the wall clock.
 //!
@@ -11,6 +12,7 @@
 //! open (with the paths of any pty it created), and `{"event":"summary",...}` at the end.
 
 pub mod lockstep;
+pub mod lockstep_node;
 pub mod mirror_node;
 pub mod realtime;
 pub mod sensor_port;
@@ -26,6 +28,9 @@ use crate::plant::Plant;
 use crate::scene::Scene;
 use mirror_node::MirrorNode;
 use sensor_port::SensorPort;
+
+/// Status frames per second of loop time unless `serve` is told otherwise.
+pub const DEFAULT_HEARTBEAT_HZ: f64 = 10.0;
 
 /// Who advances time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
