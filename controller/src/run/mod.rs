@@ -6,6 +6,8 @@
 //! # Layout
 //! - [`scenario`]: the scenario file format and its loading.
 //! - [`emulator_process`]: locating and starting `scanhil-emulator serve`.
+//! - [`host_loop`]: the host's lockstep loop as a state machine without I/O.
+//! - [`host_inbox`]: what the host does with each received frame (no I/O).
 //! - [`mirror_link`]: the mirror node seen from the controller: exchanges, status, faults,
 //!   watchdog.
 //! - [`sensor_link`]: the ILD stream seen from the controller, with its raw recording.
@@ -22,6 +24,8 @@
 pub mod bus_load;
 pub mod conformance;
 pub mod emulator_process;
+pub mod host_inbox;
+pub mod host_loop;
 pub mod lockstep;
 pub mod mirror_link;
 pub mod output;
