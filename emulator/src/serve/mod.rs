@@ -18,7 +18,7 @@ pub mod realtime;
 pub mod sensor_port;
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use scanhil_protocol::link::role::Role;
@@ -89,12 +89,7 @@ pub struct ServeLinks {
 /// # Errors
 /// A scene or plant that cannot be built, a link that does not open, a plant error.
 pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
-    let mut scene = Scene::load(&config.scene)?;
-    if let Some(seed) = config.seed {
-        scene.seed = seed;
-    }
-    let plant = Plant::from_scene(&scene)
-        .with_context(|| format!("building the plant of {}", config.scene.display()))?;
+    let (scene, plant) = load_plant(&config.scene, config.seed)?;
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -135,6 +130,21 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
         println_flushed(&summary)?;
         Ok(report.outcome)
     })
+}
+
+/// Loads the scene at `path`, `seed` (if given) overriding its own, and builds its plant, as
+/// `serve` does.
+///
+/// # Errors
+/// A scene that does not load, a plant that cannot be built.
+pub fn load_plant(path: &Path, seed: Option<u64>) -> anyhow::Result<(Scene, Plant)> {
+    let mut scene = Scene::load(path)?;
+    if let Some(seed) = seed {
+        scene.seed = seed;
+    }
+    let plant = Plant::from_scene(&scene)
+        .with_context(|| format!("building the plant of {}", path.display()))?;
+    Ok((scene, plant))
 }
 
 /// What a timing loop reports back.
