@@ -268,13 +268,17 @@ impl<'a> HostLoop<'a> {
                         self.stop(k, error);
                         Heard::Stopped
                     }
-                    Ok(Some((seq, angles))) if self.inbox.count_reading(seq, k) == 0 => {
+                    Ok(Some((seq, angles))) => {
+                        if self.inbox.count_reading(seq, k) != 0 {
+                            // Another period's reading: counted as a gap, still waiting.
+                            return Heard::Nothing;
+                        }
                         self.measured = angles;
                         self.record.push_reading(self.trajectory, k, angles);
                         self.phase = Phase::Start(k + 1);
                         Heard::Reading(k)
                     }
-                    Ok(_) => Heard::Nothing,
+                    Ok(None) => Heard::Nothing,
                 }
             }
             Phase::NodeReady => {
