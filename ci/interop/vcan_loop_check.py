@@ -29,8 +29,8 @@ Checks:
      shortest-round-trip, so equal numbers are equal bits), except the fields that name or count the
      transport itself: scenario.links (the links asked for), links.sensor (the ILD stream's own
      counters, zero when the sensor is on CAN) and emulator.summary.link.frames_sent (the Distance
-     frames travel on the mirror's link on CAN, on their own line with ILD). There are no
-     wall-clock fields in a lockstep report (timing.controller and timing.emulator are null,
+     frames travel on the mirror's link on CAN, on their own line with ILD), and run_time_s, the
+     one wall-clock field of a lockstep report (timing.controller and timing.emulator are null,
      and are compared as such).
 4. The sensor's data is the same on both of its transports: the (IldRaw, IldCounter) pairs of the
    Distance frames on vcan0 equal the (value, counter) output cycles of pty-ild/sensor.ild, the
@@ -54,8 +54,9 @@ from cantools.logreader import Parser
 BYTE_IDENTICAL = ["points.ply", "height_map.csv", "height_map.png", "tracking.svg", "progressive.svg"]
 # Report fields that describe or count the transport, per compared folder (JSON paths, prefixes).
 TRANSPORT_FIELDS = {
-    "pty-can": [("scenario", "links", "fsm")],
+    "pty-can": [("scenario", "links", "fsm"), ("run_time_s",)],
     "pty-ild": [
+        ("run_time_s",),
         ("scenario", "links", "fsm"),
         ("scenario", "links", "sensor"),
         ("links", "sensor"),

@@ -1,6 +1,6 @@
 //! Lockstep determinism: the same scenario and seed twice, bit-identical outputs.
 
-use crate::util::{assert_success, fixture, run_scanhil};
+use crate::util::{assert_success, fixture, report, run_scanhil};
 
 #[test]
 fn the_same_seed_gives_bit_identical_recordings_and_reports() {
@@ -19,7 +19,15 @@ fn the_same_seed_gives_bit_identical_recordings_and_reports() {
             out
         })
         .collect();
-    for file in ["fsm.log", "sensor.ild", "report.json", "points.ply"] {
+    // The report is the same but for the wall-clock run time, which is there and positive.
+    let [first, second] = [0, 1].map(|i| {
+        let mut report = report(runs[i].path());
+        let run_time_s = report["run_time_s"].take();
+        assert!(run_time_s.as_f64().is_some_and(|t| t > 0.0), "{run_time_s}");
+        report
+    });
+    assert_eq!(first, second, "report.json differs beyond its run time");
+    for file in ["fsm.log", "sensor.ild", "points.ply", "height_map.png", "height_map.csv"] {
         let first = std::fs::read(runs[0].path().join(file)).expect("first run's file");
         let second = std::fs::read(runs[1].path().join(file)).expect("second run's file");
         assert!(!first.is_empty(), "{file} is empty");

@@ -9,9 +9,15 @@ use scanhil_protocol::ild::IldValue;
 use scanhil_protocol::ild::stream::IldDecoder;
 use scanhil_protocol::message::Message;
 
-/// The workspace root.
+/// The workspace root: the package's folder, or the nearest folder above it with the
+/// fixtures (a member crate that includes these helpers, such as `lab/`).
 pub fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+    let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
+    manifest
+        .ancestors()
+        .find(|dir| dir.join("fixtures").is_dir())
+        .unwrap_or(manifest)
+        .to_owned()
 }
 
 /// A fixture path under `fixtures/`, as a string for command lines.

@@ -5,77 +5,12 @@
 use std::time::Duration;
 
 use scanhil_protocol::can::CanFrame;
-use scanhil_protocol::ild::IldValue;
 use scanhil_protocol::link::{CanLink, LinkError, VirtualClock};
-use scanhil_protocol::message::{
-    CoilCommand, FaultKind, Message, MessageError, NodeId, NodeState, Status, U24_MAX,
-};
 use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
-/// Why the loop stopped early.
-#[derive(Debug, thiserror::Error)]
-pub enum LoopError {
-    /// No answer within the watchdog's allowance.
-    #[error(
-        "link timeout on {link}: no angle reading for period {period} within {waited:?} ({periods} periods' allowance)"
-    )]
-    LinkTimeout {
-        /// The link.
-        link: String,
-        /// The period waited for.
-        period: u64,
-        /// The watchdog's periods.
-        periods: u32,
-        /// The wall-clock time waited.
-        waited: Duration,
-    },
-    /// A node reported a fault that ends the run (its own link timeout).
-    #[error("{link}: the {node:?} node reported {kind:?} at step {step} (mod 2^16)")]
-    NodeFault {
-        /// The link.
-        link: String,
-        /// The node.
-        node: NodeId,
-        /// The fault.
-        kind: FaultKind,
-        /// Its step counter.
-        step: u16,
-    },
-    /// A message could not be encoded.
-    #[error("cannot encode a frame: {0}")]
-    Encode(String),
-    /// The transport failed (hang-up: the emulator or adapter went away).
-    #[error(transparent)]
-    Link(#[from] LinkError),
-}
-
-/// A status or fault frame the node sent, with the loop time it was received at.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct NodeEvent {
-    /// Loop time at reception, s.
-    pub t_s: f64,
-    /// The node that sent it.
-    pub node: NodeId,
-    /// The state, for a status frame.
-    pub status: Option<NodeState>,
-    /// The fault, for a fault frame.
-    pub fault: Option<FaultKind>,
-    /// The step counter the node stamped on it (24 bits in a status, 16 in a fault).
-    pub step: u32,
-}
-
-/// Counters of the mirror link.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
-pub struct MirrorLinkCounters {
-    /// Angle readings received.
-    pub angle_readings: u64,
-    /// Angle readings whose sequence counter was not the one waited for (skipped or stale).
-    pub angle_sequence_gaps: u64,
-    /// Frames with a loop id and a malformed payload.
-    pub malformed_frames: u64,
-    /// Frames with ids that are not loop messages (other traffic).
-    pub foreign_frames: u64,
-}
+pub use super::host_inbox::{CanDistance, HostInbox, MirrorLinkCounters, NodeEvent};
+pub use super::host_loop::LoopError;
+use super::host_loop::{StampedFrame, coil_command_frame, period_frames};
 
 /// The controller's end of the mirror node's link.
 #[derive(Debug)]
@@ -85,9 +20,7 @@ pub struct MirrorLink {
     period_s: f64,
     answer_allowance: Duration,
     watchdog_periods: u32,
-    events: Vec<NodeEvent>,
-    distances: Vec<(u32, IldValue, tokio::time::Instant)>,
-    counters: MirrorLinkCounters,
+    inbox: HostInbox,
 }
 
 impl MirrorLink {
@@ -102,15 +35,14 @@ impl MirrorLink {
         answer_allowance: Duration,
         watchdog_periods: u32,
     ) -> MirrorLink {
+        let inbox = HostInbox::new(port.name());
         MirrorLink {
             port,
             clock,
             period_s,
             answer_allowance,
             watchdog_periods: watchdog_periods.max(1),
-            events: Vec::new(),
-            distances: Vec::new(),
-            counters: MirrorLinkCounters::default(),
+            inbox,
         }
     }
 
@@ -123,47 +55,10 @@ impl MirrorLink {
         k: u64,
         command_a: ActuatorPair,
     ) -> Result<SensingPair, LoopError> {
-        let t_send = k as f64 * self.period_s;
-        let command = Message::CoilCommand(CoilCommand::from_amps(k as u16, command_a));
-        self.send(&command, t_send).await?;
-        self.send(&Message::Step { step: k as u32 }, t_send).await?;
-        self.await_reading(k, (k + 1) as f64 * self.period_s).await
-    }
-
-    /// Lockstep, after the last period: tells the node the run is over (the controller's
-    /// Status(ready) at loop time `periods_done * period`) and collects what the node sent after
-    /// the last reading (the sensor's samples of the last period), up to the node's own
-    /// Status(ready), its last frame. On a bus the node sees no hang-up: this is how it learns
-    /// to finish. A node that hangs up instead, or does not answer within the watchdog's
-    /// allowance (a device without this exchange), ends it too: the scan itself is complete.
-    ///
-    /// # Errors
-    /// Link errors other than the hang-up.
-    pub async fn end_lockstep(&mut self, periods_done: u64) -> Result<(), LoopError> {
-        let t_s = periods_done as f64 * self.period_s;
-        let status = Message::Status(Status {
-            node: NodeId::Controller,
-            state: NodeState::Ready,
-            step: (periods_done & u64::from(U24_MAX)) as u32,
-            node_time_us: ((t_s * 1e6).round() as u64 & u64::from(U24_MAX)) as u32,
-        });
-        self.send(&status, t_s).await?;
-        let deadline = tokio::time::Instant::now() + self.total_allowance();
-        loop {
-            let frame = match tokio::time::timeout_at(deadline, self.recv(t_s)).await {
-                Err(_) | Ok(Err(LinkError::HangUp { .. })) => return Ok(()),
-                Ok(frame) => frame?,
-            };
-            let events = self.events.len();
-            self.classify(&frame, t_s)?;
-            let node_ready = self.events.len() > events
-                && self.events.last().is_some_and(|event| {
-                    event.node == NodeId::Fsm && event.status == Some(NodeState::Ready)
-                });
-            if node_ready {
-                return Ok(());
-            }
+        for frame in period_frames(k, command_a, self.period_s)? {
+            self.send_stamped(&frame).await?;
         }
+        self.await_reading(k, (k + 1) as f64 * self.period_s).await
     }
 
     /// Real time: waits for the next AngleReading the clock master sends; returns its period
@@ -176,15 +71,11 @@ impl MirrorLink {
         let allowance = self.total_allowance();
         let deadline = tokio::time::Instant::now() + allowance;
         loop {
-            let frame = tokio::time::timeout_at(deadline, self.recv(t_s))
+            let frame = tokio::time::timeout_at(deadline, self.recv_at(t_s))
                 .await
                 .map_err(|_| self.timeout(expected, allowance))??;
             if let Some((seq, angles)) = self.classify(&frame, t_s)? {
-                self.counters.angle_readings += 1;
-                let offset = seq.wrapping_sub(expected as u16);
-                if offset != 0 {
-                    self.counters.angle_sequence_gaps += 1;
-                }
+                let offset = self.inbox.count_reading(seq, expected);
                 return Ok((expected + u64::from(offset), angles));
             }
         }
@@ -195,9 +86,8 @@ impl MirrorLink {
     /// # Errors
     /// Link errors.
     pub async fn send_command(&mut self, k: u64, command_a: ActuatorPair) -> Result<(), LoopError> {
-        let command = Message::CoilCommand(CoilCommand::from_amps(k as u16, command_a));
-        self.send(&command, (k + 1) as f64 * self.period_s).await?;
-        Ok(())
+        let frame = coil_command_frame(k, command_a, (k + 1) as f64 * self.period_s)?;
+        self.send_stamped(&frame).await
     }
 
     /// Sends malformed input for period `k`: a Step and a CoilCommand with short payloads.
@@ -231,7 +121,7 @@ impl MirrorLink {
         let started = tokio::time::Instant::now();
         let deadline = started + allowance;
         loop {
-            let frame = match tokio::time::timeout_at(deadline, self.recv(0.0)).await {
+            let frame = match tokio::time::timeout_at(deadline, self.recv_at(0.0)).await {
                 Err(_) => return Err(self.timeout(0, allowance)),
                 Ok(Err(LinkError::HangUp { .. })) => {
                     return Err(LoopError::Link(LinkError::Protocol {
@@ -258,18 +148,66 @@ impl MirrorLink {
     /// Status and fault frames received so far.
     #[must_use]
     pub fn events(&self) -> &[NodeEvent] {
-        &self.events
+        self.inbox.events()
     }
 
     /// Distance frames received on this link (a sensor on CAN), in order, with their arrival.
-    pub fn take_distances(&mut self) -> Vec<(u32, IldValue, tokio::time::Instant)> {
-        std::mem::take(&mut self.distances)
+    pub fn take_distances(&mut self) -> Vec<CanDistance> {
+        self.inbox.take_distances()
     }
 
     /// The link's counters.
     #[must_use]
     pub fn counters(&self) -> MirrorLinkCounters {
-        self.counters
+        self.inbox.counters()
+    }
+
+    /// Hands the inbox to a loop that files the frames itself ([`super::host_loop::HostLoop`]);
+    /// [`Self::restore_inbox`] gives it back.
+    pub fn take_inbox(&mut self) -> HostInbox {
+        std::mem::replace(&mut self.inbox, HostInbox::new(self.port.name()))
+    }
+
+    /// Puts back the inbox [`Self::take_inbox`] handed out.
+    pub fn restore_inbox(&mut self, inbox: HostInbox) {
+        self.inbox = inbox;
+    }
+
+    /// Sends a frame, its recording stamped with its loop time (lockstep).
+    ///
+    /// # Errors
+    /// Link errors.
+    pub async fn send_stamped(&mut self, frame: &StampedFrame) -> Result<(), LoopError> {
+        self.at(frame.t_s);
+        self.port.send(&frame.frame).await?;
+        Ok(())
+    }
+
+    /// Waits for the next frame, its recording stamped with loop time `t_s` (lockstep).
+    /// Cancel-safe.
+    ///
+    /// # Errors
+    /// Link errors ([`LinkError::HangUp`] when the node went away).
+    pub async fn recv_at(&mut self, t_s: f64) -> Result<CanFrame, LinkError> {
+        self.at(t_s);
+        self.port.recv().await
+    }
+
+    /// The watchdog's whole allowance: its periods times the allowance per answer.
+    #[must_use]
+    pub fn total_allowance(&self) -> Duration {
+        self.answer_allowance.saturating_mul(self.watchdog_periods)
+    }
+
+    /// The error for no answer about `period` within `waited`.
+    #[must_use]
+    pub fn timeout(&self, period: u64, waited: Duration) -> LoopError {
+        LoopError::LinkTimeout {
+            link: self.port.name().to_owned(),
+            period,
+            periods: self.watchdog_periods,
+            waited,
+        }
     }
 
     /// The link's name.
@@ -285,106 +223,27 @@ impl MirrorLink {
         }
     }
 
-    async fn send(&mut self, message: &Message, t_s: f64) -> Result<(), LoopError> {
-        let frame = message
-            .encode()
-            .map_err(|error| LoopError::Encode(error.to_string()))?;
-        self.at(t_s);
-        self.port.send(&frame).await?;
-        Ok(())
-    }
-
-    async fn recv(&mut self, t_s: f64) -> Result<CanFrame, LinkError> {
-        self.at(t_s);
-        self.port.recv().await
-    }
-
-    fn total_allowance(&self) -> Duration {
-        self.answer_allowance.saturating_mul(self.watchdog_periods)
-    }
-
-    fn timeout(&self, period: u64, waited: Duration) -> LoopError {
-        LoopError::LinkTimeout {
-            link: self.port.name().to_owned(),
-            period,
-            periods: self.watchdog_periods,
-            waited,
-        }
-    }
-
     async fn await_reading(&mut self, k: u64, t_s: f64) -> Result<SensingPair, LoopError> {
         let allowance = self.total_allowance();
         let deadline = tokio::time::Instant::now() + allowance;
         loop {
-            let frame = tokio::time::timeout_at(deadline, self.recv(t_s))
+            let frame = tokio::time::timeout_at(deadline, self.recv_at(t_s))
                 .await
                 .map_err(|_| self.timeout(k, allowance))??;
-            if let Some((seq, angles)) = self.classify(&frame, t_s)? {
-                self.counters.angle_readings += 1;
-                if seq == k as u16 {
-                    return Ok(angles);
-                }
-                self.counters.angle_sequence_gaps += 1;
+            if let Some((seq, angles)) = self.classify(&frame, t_s)?
+                && self.inbox.count_reading(seq, k) == 0
+            {
+                return Ok(angles);
             }
         }
     }
 
-    /// Files a received frame; returns an angle reading's sequence counter and angles.
+    /// Files a received frame at loop time `t_s` (see [`HostInbox::classify`]).
     fn classify(
         &mut self,
         frame: &CanFrame,
         t_s: f64,
     ) -> Result<Option<(u16, SensingPair)>, LoopError> {
-        let message = match Message::decode(frame) {
-            Ok(message) => message,
-            Err(MessageError::UnknownId(_)) => {
-                self.counters.foreign_frames += 1;
-                return Ok(None);
-            }
-            Err(_) => {
-                self.counters.malformed_frames += 1;
-                return Ok(None);
-            }
-        };
-        match message {
-            Message::AngleReading(reading) => return Ok(Some((reading.seq, reading.rad()))),
-            Message::Distance(distance) => {
-                let now = tokio::time::Instant::now();
-                self.distances.push((distance.counter, distance.value, now));
-            }
-            Message::AnglesDistanceFd { angles, distance } => {
-                let now = tokio::time::Instant::now();
-                self.distances.push((distance.counter, distance.value, now));
-                return Ok(Some((angles.seq, angles.rad())));
-            }
-            Message::Status(status) if status.node != NodeId::Controller => {
-                self.events.push(NodeEvent {
-                    t_s,
-                    node: status.node,
-                    status: Some(status.state),
-                    fault: None,
-                    step: status.step,
-                });
-            }
-            Message::Fault(fault) if fault.node != NodeId::Controller => {
-                self.events.push(NodeEvent {
-                    t_s,
-                    node: fault.node,
-                    status: None,
-                    fault: Some(fault.kind),
-                    step: u32::from(fault.step),
-                });
-                if fault.kind == FaultKind::LinkTimeout {
-                    return Err(LoopError::NodeFault {
-                        link: self.port.name().to_owned(),
-                        node: fault.node,
-                        kind: fault.kind,
-                        step: fault.step,
-                    });
-                }
-            }
-            _ => {}
-        }
-        Ok(None)
+        self.inbox.classify(frame, t_s, tokio::time::Instant::now())
     }
 }

@@ -6,6 +6,8 @@
 //! # Layout
 //! - [`scenario`]: the scenario file format and its loading.
 //! - [`emulator_process`]: locating and starting `scanhil-emulator serve`.
+//! - [`host_loop`]: the host's lockstep loop as a state machine without I/O.
+//! - [`host_inbox`]: what the host does with each received frame (no I/O).
 //! - [`mirror_link`]: the mirror node seen from the controller: exchanges, status, faults,
 //!   watchdog.
 //! - [`sensor_link`]: the ILD stream seen from the controller, with its raw recording.
@@ -21,6 +23,8 @@
 pub mod bus_load;
 pub mod conformance;
 pub mod emulator_process;
+pub mod host_inbox;
+pub mod host_loop;
 pub mod lockstep;
 pub mod mirror_link;
 pub mod output;
@@ -41,7 +45,6 @@ use anyhow::{Context, bail};
 use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{CanCapture, CanLink, CaptureClock, PtyPair, VirtualClock};
 
-use crate::settings::ControllerSettings;
 use emulator_process::{EmulatorProcess, locate_emulator};
 use mirror_link::MirrorLink;
 use pairing::SensorClock;
@@ -82,6 +85,17 @@ pub enum ScanEnd {
     Stopped(String),
 }
 
+impl ScanEnd {
+    /// How the loop that made `record` ended.
+    #[must_use]
+    pub fn of(record: &lockstep::LoopRecord) -> ScanEnd {
+        match &record.stopped_by {
+            None => ScanEnd::Complete,
+            Some(error) => ScanEnd::Stopped(error.to_string()),
+        }
+    }
+}
+
 /// Runs a scenario and writes its output folder; returns how it ended.
 ///
 /// # Errors
@@ -107,20 +121,9 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
     if options.no_emulator {
         scenario.links.spawn_emulator = false;
     }
-    let settings = ControllerSettings::load(&scenario.controller)?;
-    let mut controller = settings.build()?;
+    let mut controller = scenario.build_controller()?;
     let rig = &scenario.rig;
     let period_s = controller.period_s();
-    if (rig.period_s() - period_s).abs() > 1e-12 * period_s {
-        bail!(
-            "{}: the controller {} runs at {:.1} Hz but rig {} at {:.1} Hz",
-            scenario.path.display(),
-            scenario.controller.display(),
-            1.0 / period_s,
-            rig.path.display(),
-            rig.control_rate_hz
-        );
-    }
     let sensor_rate_hz = rig.sensor.map(|sensor| sensor.measuring_rate_hz);
     let periods = (scenario.duration_s / period_s).round() as u64;
     bus_load::check(&scenario, sensor_rate_hz.unwrap_or(0.0), period_s)?;
@@ -133,6 +136,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         .context("starting the I/O runtime")?;
     let out_dir = options.out_dir.clone();
     let outcome = runtime.block_on(async {
+        let started = std::time::Instant::now();
         let plan = LinkPlan {
             fsm: scenario.links.fsm.clone(),
             sensor: rig.sensor.map(|_| scenario.links.sensor.clone()),
@@ -194,6 +198,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             node_events,
             sensor: links.sensor.snapshot(),
             emulator_summary,
+            run_time_s: started.elapsed().as_secs_f64(),
         })
     })?;
     let declared = sensor_rate_hz
@@ -323,7 +328,11 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
                 process.path().display()
             );
         };
-        check_emulated_devices(&ready, plan)?;
+        EmulatedDevices::from_ready_line(&ready).check(
+            &plan.scene,
+            plan.period_s,
+            plan.sensor_rate_hz,
+        )?;
         (Some(process), Some(lines))
     } else {
         (None, None)
@@ -393,33 +402,59 @@ pub async fn finish_emulator(
     )
 }
 
-/// Checks the devices an emulator started here serves against what the host expects (its
-/// ready line states them), as a real sensor's configuration is read back and checked: the
-/// control period, and whether a sensor is served and at what rate.
-///
-/// # Errors
-/// A mismatch, naming both values and the scene.
-fn check_emulated_devices(ready: &serde_json::Value, plan: &LinkPlan) -> anyhow::Result<()> {
-    let scene = plan.scene.display();
-    let period_s = ready["period_s"].as_f64().unwrap_or(f64::NAN);
-    let same_period = (period_s - plan.period_s).abs() <= 1e-12 * plan.period_s;
-    if !same_period {
-        bail!(
-            "the emulated mirror node of scene {scene} runs at {:.1} Hz, the rig expects {:.1} Hz",
-            1.0 / period_s,
-            1.0 / plan.period_s
-        );
-    }
-    let served = ready["sensor_measuring_rate_hz"].as_f64();
-    match (plan.sensor_rate_hz, served) {
-        (Some(expected), Some(served)) if (expected - served).abs() > 1e-9 * expected => bail!(
-            "the emulated sensor of scene {scene} measures at {served} Hz, the rig expects \
-             {expected} Hz"
-        ),
-        (Some(expected), None) => {
-            bail!("the rig has a sensor at {expected} Hz but scene {scene} has no `sensor` part")
+/// What an emulator serves, as its ready line states it: the control period and the
+/// sensor's measuring rate (`None`: no sensor).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EmulatedDevices {
+    /// The mirror node's control period, s.
+    pub period_s: f64,
+    /// The emulated sensor's measuring rate, Hz, if it serves one.
+    pub sensor_measuring_rate_hz: Option<f64>,
+}
+
+impl EmulatedDevices {
+    /// The devices an emulator's ready line declares.
+    #[must_use]
+    pub fn from_ready_line(ready: &serde_json::Value) -> EmulatedDevices {
+        EmulatedDevices {
+            period_s: ready["period_s"].as_f64().unwrap_or(f64::NAN),
+            sensor_measuring_rate_hz: ready["sensor_measuring_rate_hz"].as_f64(),
         }
-        _ => Ok(()),
+    }
+
+    /// Checks them against what the host expects (the rig's control period and sensor rate),
+    /// as a real sensor's configuration is read back and checked.
+    ///
+    /// # Errors
+    /// A mismatch, naming both values and `scene`.
+    pub fn check(
+        &self,
+        scene: &Path,
+        period_s: f64,
+        sensor_rate_hz: Option<f64>,
+    ) -> anyhow::Result<()> {
+        let scene = scene.display();
+        let same_period = (self.period_s - period_s).abs() <= 1e-12 * period_s;
+        if !same_period {
+            bail!(
+                "the emulated mirror node of scene {scene} runs at {:.1} Hz, the rig expects \
+                 {:.1} Hz",
+                1.0 / self.period_s,
+                1.0 / period_s
+            );
+        }
+        match (sensor_rate_hz, self.sensor_measuring_rate_hz) {
+            (Some(expected), Some(served)) if (expected - served).abs() > 1e-9 * expected => {
+                bail!(
+                    "the emulated sensor of scene {scene} measures at {served} Hz, the rig \
+                     expects {expected} Hz"
+                )
+            }
+            (Some(expected), None) => bail!(
+                "the rig has a sensor at {expected} Hz but scene {scene} has no `sensor` part"
+            ),
+            _ => Ok(()),
+        }
     }
 }
 

@@ -53,6 +53,9 @@ pub struct RunData {
     pub sensor: (Vec<CountedSample>, SensorCounters),
     /// The emulator's exit status and summary line, when it was started by this run.
     pub emulator_summary: Option<serde_json::Value>,
+    /// Wall-clock time from opening the links (or starting the in-process loop) to the end
+    /// of the loop, s.
+    pub run_time_s: f64,
 }
 
 /// Images the run with the one imaging pipeline (the rig's geometry and calibration) and
@@ -153,10 +156,7 @@ pub fn write(
         None
     };
     write_tracking_plot(record, out_dir)?;
-    let end = match &record.stopped_by {
-        None => ScanEnd::Complete,
-        Some(error) => ScanEnd::Stopped(error.to_string()),
-    };
+    let end = ScanEnd::of(record);
     let figures = scenario.trajectory.figures(imaging.as_ref().map(|m| {
         (
             m.grid.nx as f64 * m.grid.pitch_mm,
@@ -180,6 +180,7 @@ pub fn write(
             ScanEnd::Complete => serde_json::json!({"complete": true}),
             ScanEnd::Stopped(why) => serde_json::json!({"complete": false, "stopped_by": why}),
         },
+        "run_time_s": run.run_time_s,
         "periods": {
             "planned": record.periods_planned,
             "done": record.periods_done,

@@ -18,6 +18,8 @@ use serde::Deserialize;
 use crate::imaging::feature::FeatureParams;
 use crate::imaging::pipeline::MAX_PROGRESSIVE_STEPS;
 use crate::rig::{Rig, RigError};
+use crate::scan_controller::ScanController;
+use crate::settings::ControllerSettings;
 use crate::trajectory::Trajectory;
 
 /// A loaded, checked scenario with absolute paths.
@@ -326,6 +328,28 @@ impl Scenario {
             links: file.links,
             imaging: file.imaging,
         })
+    }
+
+    /// Loads the scenario's controller settings, discretises them and checks that they run at
+    /// the rig's control rate.
+    ///
+    /// # Errors
+    /// Settings that do not load or discretise stably, a rate other than the rig's (both
+    /// named).
+    pub fn build_controller(&self) -> anyhow::Result<ScanController> {
+        let controller = ControllerSettings::load(&self.controller)?.build()?;
+        let period_s = controller.period_s();
+        if (self.rig.period_s() - period_s).abs() > 1e-12 * period_s {
+            anyhow::bail!(
+                "{}: the controller {} runs at {:.1} Hz but rig {} at {:.1} Hz",
+                self.path.display(),
+                self.controller.display(),
+                1.0 / period_s,
+                self.rig.path.display(),
+                self.rig.control_rate_hz
+            );
+        }
+        Ok(controller)
     }
 
     /// The scene file whose surface is the truth: `truth`, else the emulator's `scene`.

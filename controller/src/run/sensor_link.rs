@@ -3,18 +3,20 @@
 //! Each output cycle is a distance value, then (when the sensor sends it,
 //! `OUTADD_RS422 COUNTER`) its 18-bit measured-value counter; a sensor without the counter
 //! gets the running count of cycles. A sensor on the mirror's CAN link sends Distance frames
-//! instead; [`super::mirror_link`] collects those.
+//! instead; [`super::mirror_link`] collects those. [`IldSampleDecoder`] is the same decoding
+//! fed with bytes directly, for a loop run in one process.
 
+use std::collections::VecDeque;
 use std::fs::File;
 use std::path::Path;
 use std::time::Duration;
 
 use scanhil_protocol::ild::IldValue;
-use scanhil_protocol::link::ild::{IldCycle, IldLink};
+use scanhil_protocol::link::ild::{IldCounters, IldCycle, IldCycleAssembler, IldLink};
 use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{ByteCapture, LinkError, LinkUri, PtyPair};
 
-use super::mirror_link::LoopError;
+use super::host_loop::LoopError;
 use super::pairing::CounterUnwrapper;
 
 /// The ILD counter's modulus (18 bits).
@@ -59,6 +61,21 @@ pub enum SensorLink {
 #[derive(Debug)]
 pub struct IldStream {
     link: IldLink,
+    log: SampleLog,
+}
+
+/// The ILD stream's bytes decoded into samples without I/O: what the host end of an
+/// [`IldLink`] does with the bytes it reads, for bytes handed over in memory.
+#[derive(Debug)]
+pub struct IldSampleDecoder {
+    assembler: IldCycleAssembler,
+    cycles: VecDeque<IldCycle>,
+    log: SampleLog,
+}
+
+/// Decoded samples with their counters unwrapped.
+#[derive(Debug)]
+struct SampleLog {
     unwrapper: CounterUnwrapper,
     samples: Vec<CountedSample>,
 }
@@ -84,8 +101,7 @@ impl SensorLink {
         link.set_values_per_cycle(VALUES_PER_CYCLE);
         SensorLink::Ild(Box::new(IldStream {
             link,
-            unwrapper: CounterUnwrapper::new(ILD_COUNTER_MODULUS),
-            samples: Vec::new(),
+            log: SampleLog::new(),
         }))
     }
 
@@ -110,7 +126,7 @@ impl SensorLink {
             SensorLink::Elsewhere => std::future::pending().await,
             SensorLink::Ild(stream) => loop {
                 match stream.link.recv_cycle().await {
-                    Ok(cycle) => stream.add(&cycle),
+                    Ok(cycle) => stream.log.add(&cycle),
                     Err(error) => return error.into(),
                 }
             },
@@ -129,7 +145,7 @@ impl SensorLink {
             match stream.link.recv_cycle_timeout(quiet).await {
                 Ok(None) | Err(LinkError::HangUp { .. }) => return Ok(()),
                 Err(error) => return Err(error),
-                Ok(Some(cycle)) => stream.add(&cycle),
+                Ok(Some(cycle)) => stream.log.add(&cycle),
             }
         }
     }
@@ -139,21 +155,52 @@ impl SensorLink {
     pub fn snapshot(&self) -> (Vec<CountedSample>, SensorCounters) {
         match self {
             SensorLink::Elsewhere => (Vec::new(), SensorCounters::default()),
-            SensorLink::Ild(stream) => {
-                let link = stream.link.counters();
-                let counters = SensorCounters {
-                    samples: stream.samples.len() as u64,
-                    counter_gaps: stream.unwrapper.missing(),
-                    resync_bytes: link.skipped_bytes,
-                    incomplete_cycles: link.incomplete_cycles,
-                };
-                (stream.samples.clone(), counters)
-            }
+            SensorLink::Ild(stream) => stream.log.snapshot(stream.link.counters()),
         }
     }
 }
 
-impl IldStream {
+impl IldSampleDecoder {
+    /// A decoder of cycles of a distance and its counter, as [`SensorLink`] configures its
+    /// link.
+    #[must_use]
+    pub fn new() -> IldSampleDecoder {
+        IldSampleDecoder {
+            assembler: IldCycleAssembler::new(VALUES_PER_CYCLE),
+            cycles: VecDeque::new(),
+            log: SampleLog::new(),
+        }
+    }
+
+    /// Decodes bytes of the stream, received at `arrived`.
+    pub fn push(&mut self, bytes: &[u8], arrived: tokio::time::Instant) {
+        self.assembler.push(bytes, arrived, &mut self.cycles);
+        for cycle in self.cycles.drain(..) {
+            self.log.add(&cycle);
+        }
+    }
+
+    /// The samples and counters so far.
+    #[must_use]
+    pub fn snapshot(&self) -> (Vec<CountedSample>, SensorCounters) {
+        self.log.snapshot(self.assembler.counters())
+    }
+}
+
+impl Default for IldSampleDecoder {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl SampleLog {
+    fn new() -> SampleLog {
+        SampleLog {
+            unwrapper: CounterUnwrapper::new(ILD_COUNTER_MODULUS),
+            samples: Vec::new(),
+        }
+    }
+
     fn add(&mut self, cycle: &IldCycle) {
         let counter = match cycle.extras.first() {
             Some(&raw) => self.unwrapper.unwrap(u64::from(raw)),
@@ -164,5 +211,16 @@ impl IldStream {
             value: cycle.distance,
             arrived: cycle.arrived,
         });
+    }
+
+    /// The samples, and the counters with the line's.
+    fn snapshot(&self, line: &IldCounters) -> (Vec<CountedSample>, SensorCounters) {
+        let counters = SensorCounters {
+            samples: self.samples.len() as u64,
+            counter_gaps: self.unwrapper.missing(),
+            resync_bytes: line.skipped_bytes,
+            incomplete_cycles: line.incomplete_cycles,
+        };
+        (self.samples.clone(), counters)
     }
 }

@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 
-use scanhil_emulator::serve::{ServeConfig, ServeOutcome, TimingMode};
+use scanhil_emulator::serve::{DEFAULT_HEARTBEAT_HZ, ServeConfig, ServeOutcome, TimingMode};
 
 /// Serve the emulated mirror (`--fsm`) and/or sensor (`--sensor`) on real links.
 #[derive(Debug, clap::Args)]
@@ -38,7 +38,7 @@ pub struct Args {
     #[arg(long)]
     duration_s: Option<f64>,
     /// Status/heartbeat frames per second (of loop time).
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = DEFAULT_HEARTBEAT_HZ)]
     heartbeat_hz: f64,
 }
 

@@ -1,9 +1,9 @@
 //! Lockstep: the controller's Step(k) frame advances the plant exactly one period, so time is
 //! virtual and a seed gives the same frames on every transport.
 //!
-//! Per period the controller sends CoilCommand(seq = k) then Step(k); the node answers
-//! AngleReading(k), then fault frames for faults that started, the sensor's samples of that
-//! period, and a Status frame every `1 / heartbeat_hz` seconds of loop time. The watchdog is
+//! Per period the controller sends CoilCommand(seq = k) then Step(k); the node answers as
+//! [`super::lockstep_node`] says (AngleReading(k), the sensor's samples of that period, fault
+//! frames for faults that started, and a Status frame on heartbeat periods). The watchdog is
 //! armed by the first frame from the controller: when no frame arrives for `watchdog_periods`
 //! wall-clock allowances, the node drops its coil currents to zero, sends a LinkTimeout
 //! fault and a Status(fault), and the run ends. The run also ends when the controller hangs
@@ -14,14 +14,13 @@ use std::time::Duration;
 
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::link::{LinkError, Watchdog};
-use scanhil_protocol::message::{
-    AngleReading, Fault, FaultKind, Message, MessageError, NodeId, NodeState, Status, U24_MAX,
-};
 
-use super::mirror_node::{MirrorNode, NodeOutput};
+use super::lockstep_node::{LockstepNode, NodeReply, NodeSend};
+use super::mirror_node::MirrorNode;
 use super::{LoopReport, ServeConfig, ServeLinks, ServeOutcome};
 
-/// Runs the lockstep loop until the controller hangs up or the watchdog fires.
+/// Runs the lockstep loop until the controller hangs up or the watchdog fires. What the node
+/// answers is [`LockstepNode`]'s; this loop only receives, sends and keeps the watchdog.
 ///
 /// # Errors
 /// A link error other than a hang-up, or a plant error (non-finite command).
@@ -32,7 +31,7 @@ pub async fn run(
 ) -> anyhow::Result<LoopReport> {
     let allowance = Duration::from_secs_f64(config.lockstep_answer_allowance_s);
     let mut watchdog: Option<Watchdog> = None;
-    let heartbeat_every = periods_per_heartbeat(node.plant().period_s(), config.heartbeat_hz);
+    let mut node = LockstepNode::new(node, config.heartbeat_hz);
     loop {
         let received = match &watchdog {
             Some(dog) => {
@@ -46,13 +45,9 @@ pub async fn run(
         };
         let frame = match received {
             None => {
-                let (fault, detail) = node.on_link_timeout(config.watchdog_periods);
-                let k = node.next_period();
-                links.fsm.send(&fault_frame(fault, detail, k)?).await?;
-                links
-                    .fsm
-                    .send(&status_frame(NodeState::Fault, k, node.plant().period_s())?)
-                    .await?;
+                for frame in node.on_link_timeout(config.watchdog_periods)? {
+                    links.fsm.send(&frame).await?;
+                }
                 linger(links).await?;
                 return Ok(LoopReport {
                     outcome: ServeOutcome::LinkTimeout,
@@ -73,56 +68,24 @@ pub async fn run(
             Some(Err(err)) => return Err(err.into()),
             Some(Ok(frame)) => frame,
         };
-        let message = match Message::decode(&frame) {
-            Ok(message) => message,
-            Err(MessageError::UnknownId(_)) => continue,
-            Err(_) => {
-                node.on_malformed_frame();
-                continue;
-            }
-        };
-        match message {
-            Message::CoilCommand(command) => {
+        match node.on_frame(&frame)? {
+            NodeReply::Ignored => {}
+            NodeReply::Send(sends) => {
                 watchdog
                     .get_or_insert_with(|| {
                         Watchdog::new("controller", allowance, config.watchdog_periods)
                     })
                     .feed();
-                node.on_command(command.seq, command.amps());
-            }
-            Message::Step { step } => {
-                watchdog
-                    .get_or_insert_with(|| {
-                        Watchdog::new("controller", allowance, config.watchdog_periods)
-                    })
-                    .feed();
-                let k = node.next_period();
-                node.check_step_counter(step);
-                for output in node.step()? {
-                    match output {
-                        NodeOutput::Angles(step) => {
-                            links.fsm.send(&angle_frame(&step)?).await?;
-                            links
-                                .sensor
-                                .emit(&step.sensor_samples, &mut links.fsm)
-                                .await?;
-                        }
-                        NodeOutput::Fault(kind, detail) => {
-                            links.fsm.send(&fault_frame(kind, detail, k)?).await?;
+                for send in sends {
+                    match send {
+                        NodeSend::Frame(frame) => links.fsm.send(&frame).await?,
+                        NodeSend::Samples(samples) => {
+                            links.sensor.emit(&samples, &mut links.fsm).await?;
                         }
                     }
                 }
-                if k.is_multiple_of(heartbeat_every) {
-                    let status = status_frame(node.state(), k, node.plant().period_s())?;
-                    links.fsm.send(&status).await?;
-                }
             }
-            Message::Status(status)
-                if status.node == NodeId::Controller && status.state != NodeState::Running =>
-            {
-                return end_of_run(node, links).await;
-            }
-            _ => {}
+            NodeReply::EndOfRun(ready) => return end_of_run(&ready, links).await,
         }
     }
 }
@@ -132,10 +95,8 @@ pub async fn run(
 /// the last period, and finishes. This is how the run ends on a bus, where no hang-up comes;
 /// on a serial line the node then waits for the hang-up, as closing the line first would drop
 /// what the controller has not read yet.
-async fn end_of_run(node: &MirrorNode, links: &mut ServeLinks) -> anyhow::Result<LoopReport> {
-    let k = node.next_period();
-    let ready = status_frame(NodeState::Ready, k, node.plant().period_s())?;
-    links.fsm.send(&ready).await?;
+async fn end_of_run(ready: &CanFrame, links: &mut ServeLinks) -> anyhow::Result<LoopReport> {
+    links.fsm.send(ready).await?;
     if links.fsm.slcan_bitrate().is_some() {
         linger(links).await?;
     }
@@ -144,44 +105,6 @@ async fn end_of_run(node: &MirrorNode, links: &mut ServeLinks) -> anyhow::Result
         timing: serde_json::Value::Null,
         error: None,
     })
-}
-
-/// The AngleReading frame of a stepped period (sequence counter = period mod 2^16).
-///
-/// # Errors
-/// [`MessageError`] if the message cannot be encoded (never for the mirror's angles).
-pub fn angle_frame(step: &crate::plant::PlantStep) -> Result<CanFrame, MessageError> {
-    let reading = AngleReading::from_rad(step.period_index as u16, step.measured_angles_rad);
-    Message::AngleReading(reading).encode()
-}
-
-/// The mirror node's fault frame for a fault that started in period `k`.
-///
-/// # Errors
-/// [`MessageError`] if the message cannot be encoded.
-pub fn fault_frame(kind: FaultKind, detail: i32, k: u64) -> Result<CanFrame, MessageError> {
-    Message::Fault(Fault {
-        node: NodeId::Fsm,
-        kind,
-        detail,
-        step: k as u16,
-    })
-    .encode()
-}
-
-/// The mirror node's status frame in period `k` (its node time is the loop time, in us).
-///
-/// # Errors
-/// [`MessageError`] if the message cannot be encoded.
-pub fn status_frame(state: NodeState, k: u64, period_s: f64) -> Result<CanFrame, MessageError> {
-    let node_time_us = (k as f64 * period_s * 1e6).round() as u64;
-    Message::Status(Status {
-        node: NodeId::Fsm,
-        state,
-        step: (k & u64::from(U24_MAX)) as u32,
-        node_time_us: (node_time_us & u64::from(U24_MAX)) as u32,
-    })
-    .encode()
 }
 
 /// How long the node keeps the link open after its last frames, so the host can read them
@@ -200,16 +123,5 @@ pub async fn linger(links: &mut ServeLinks) -> anyhow::Result<()> {
             Ok(Err(error)) => return Err(error.into()),
             Ok(Ok(_)) => {}
         }
-    }
-}
-
-/// Periods between two status frames (at least 1).
-#[must_use]
-pub fn periods_per_heartbeat(period_s: f64, heartbeat_hz: f64) -> u64 {
-    let periods = (1.0 / (heartbeat_hz * period_s)).round();
-    if periods.is_finite() && periods >= 1.0 {
-        periods as u64
-    } else {
-        1
     }
 }

@@ -4,6 +4,7 @@
 //! # Layout
 //! - [`mirror_node`]: the mirror node as a protocol state machine around the plant (no I/O).
 //! - [`sensor_port`]: where the sensor's samples go (the ILD stream, or CAN Distance frames).
+//! - [`lockstep_node`]: the node's answers to the controller's frames in lockstep (no I/O).
 //! - [`lockstep`]: the controller's Step frame advances the plant one period.
 //! - [`realtime`]: this emulator is the clock master on the wall clock.
 //!
@@ -11,12 +12,13 @@
 //! open (with the paths of any pty it created), and `{"event":"summary",...}` at the end.
 
 pub mod lockstep;
+pub mod lockstep_node;
 pub mod mirror_node;
 pub mod realtime;
 pub mod sensor_port;
 
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use scanhil_protocol::link::role::Role;
@@ -26,6 +28,9 @@ use crate::plant::Plant;
 use crate::scene::Scene;
 use mirror_node::MirrorNode;
 use sensor_port::SensorPort;
+
+/// Status frames per second of loop time unless `serve` is told otherwise.
+pub const DEFAULT_HEARTBEAT_HZ: f64 = 10.0;
 
 /// Who advances time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -84,12 +89,7 @@ pub struct ServeLinks {
 /// # Errors
 /// A scene or plant that cannot be built, a link that does not open, a plant error.
 pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
-    let mut scene = Scene::load(&config.scene)?;
-    if let Some(seed) = config.seed {
-        scene.seed = seed;
-    }
-    let plant = Plant::from_scene(&scene)
-        .with_context(|| format!("building the plant of {}", config.scene.display()))?;
+    let (scene, plant) = load_plant(&config.scene, config.seed)?;
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -133,6 +133,21 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
         println_flushed(&summary)?;
         Ok(report.outcome)
     })
+}
+
+/// Loads the scene at `path`, `seed` (if given) overriding its own, and builds its plant, as
+/// `serve` does.
+///
+/// # Errors
+/// A scene that does not load, a plant that cannot be built.
+pub fn load_plant(path: &Path, seed: Option<u64>) -> anyhow::Result<(Scene, Plant)> {
+    let mut scene = Scene::load(path)?;
+    if let Some(seed) = seed {
+        scene.seed = seed;
+    }
+    let plant = Plant::from_scene(&scene)
+        .with_context(|| format!("building the plant of {}", path.display()))?;
+    Ok((scene, plant))
 }
 
 /// What a timing loop reports back.

@@ -16,7 +16,8 @@ use scanhil_protocol::link::LinkError;
 use scanhil_protocol::loop_timing::PeriodRecorder;
 use scanhil_protocol::message::{Message, MessageError, NodeState};
 
-use super::lockstep::{angle_frame, fault_frame, linger, periods_per_heartbeat, status_frame};
+use super::lockstep::linger;
+use super::lockstep_node::{angle_frame, fault_frame, periods_per_heartbeat, status_frame};
 use super::mirror_node::{MirrorNode, NodeOutput};
 use super::{LoopReport, ServeConfig, ServeLinks, ServeOutcome};
 

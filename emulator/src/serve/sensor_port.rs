@@ -125,7 +125,7 @@ impl SensorPort {
 
 impl SensorClockTrack {
     /// Counts one sample sent; the first one fixes the loop time of counter 0.
-    fn count(&mut self, sample: &IldSample) {
+    pub fn count(&mut self, sample: &IldSample) {
         if self.counter_zero_s.is_none() {
             self.counter_zero_s =
                 Some(sample.t_s - f64::from(sample.counter) / self.measuring_rate_hz);

@@ -22,7 +22,7 @@ use super::role::Role;
 use super::uri::LinkUri;
 use crate::ild::IldValue;
 use crate::ild::command::{IldCommand, IldCommandError, IldReply, IldReplyParser};
-use crate::ild::stream::{FACTORY_BAUD, IldDecoder, IldEvent, encode_cycle};
+use crate::ild::stream::{FACTORY_BAUD, IldDecoder, encode_cycle};
 
 /// Bytes read from the line at a time.
 const READ_CHUNK: usize = 4096;
@@ -72,9 +72,7 @@ pub struct IldCounters {
 pub struct IldLink {
     line: SerialLine,
     role: Role,
-    decoder: IldDecoder,
-    values_per_cycle: usize,
-    partial: Option<IldCycle>,
+    assembler: IldCycleAssembler,
     cycles: VecDeque<IldCycle>,
     echo: bool,
     reply_parser: Option<IldReplyParser>,
@@ -83,7 +81,78 @@ pub struct IldLink {
     requests: VecDeque<IldRequest>,
     pending_tx: Vec<u8>,
     capture: Option<ByteCapture>,
+}
+
+/// The host end's stream decoding without I/O: raw bytes in, complete output cycles out
+/// (what [`IldLink`] does with the value bytes it reads; an in-memory host uses it directly).
+#[derive(Debug)]
+pub struct IldCycleAssembler {
+    decoder: IldDecoder,
+    values_per_cycle: usize,
+    partial: Option<IldCycle>,
     counters: IldCounters,
+}
+
+impl IldCycleAssembler {
+    /// An assembler of cycles of `values_per_cycle` values (1 + the `OUTADD_RS422` values).
+    #[must_use]
+    pub fn new(values_per_cycle: usize) -> IldCycleAssembler {
+        IldCycleAssembler {
+            decoder: IldDecoder::new(),
+            values_per_cycle: values_per_cycle.max(1),
+            partial: None,
+            counters: IldCounters::default(),
+        }
+    }
+
+    /// Values per output cycle; a cycle is delivered as soon as it is complete.
+    pub fn set_values_per_cycle(&mut self, values: usize) {
+        self.values_per_cycle = values.max(1);
+    }
+
+    /// What went wrong so far.
+    #[must_use]
+    pub fn counters(&self) -> &IldCounters {
+        &self.counters
+    }
+
+    /// Decodes `bytes` (read at `arrived`) and appends the cycles they complete to `cycles`.
+    pub fn push(&mut self, bytes: &[u8], arrived: Instant, cycles: &mut VecDeque<IldCycle>) {
+        for event in self.decoder.push(bytes) {
+            let word = match event {
+                Ok(word) => word,
+                Err(gap) => {
+                    self.counters.sync_losses += 1;
+                    self.counters.skipped_bytes += gap.len;
+                    continue;
+                }
+            };
+            if word.first_in_cycle {
+                if let Some(unfinished) = self.partial.take() {
+                    self.counters.incomplete_cycles += 1;
+                    cycles.push_back(unfinished);
+                }
+                self.partial = Some(IldCycle {
+                    distance: IldValue::from_raw(word.raw),
+                    extras: Vec::new(),
+                    arrived,
+                    offset: word.offset,
+                });
+            } else if let (Some(cycle), Some(_)) = (&mut self.partial, word.index_in_cycle) {
+                cycle.extras.push(word.raw);
+                cycle.arrived = arrived;
+            } else {
+                self.counters.orphan_values += 1;
+            }
+            if self
+                .partial
+                .as_ref()
+                .is_some_and(|c| 1 + c.extras.len() >= self.values_per_cycle)
+            {
+                cycles.extend(self.partial.take());
+            }
+        }
+    }
 }
 
 impl IldLink {
@@ -120,9 +189,7 @@ impl IldLink {
         IldLink {
             line,
             role,
-            decoder: IldDecoder::new(),
-            values_per_cycle: 1,
-            partial: None,
+            assembler: IldCycleAssembler::new(1),
             cycles: VecDeque::new(),
             echo: false,
             reply_parser: None,
@@ -131,7 +198,6 @@ impl IldLink {
             requests: VecDeque::new(),
             pending_tx: Vec::new(),
             capture: None,
-            counters: IldCounters::default(),
         }
     }
 
@@ -144,13 +210,13 @@ impl IldLink {
     /// What went wrong so far.
     #[must_use]
     pub fn counters(&self) -> &IldCounters {
-        &self.counters
+        self.assembler.counters()
     }
 
     /// Host: values per output cycle, 1 + the number of `OUTADD_RS422` values (default 1).
     /// A cycle is delivered as soon as it is complete.
     pub fn set_values_per_cycle(&mut self, values: usize) {
-        self.values_per_cycle = values.max(1);
+        self.assembler.set_values_per_cycle(values);
     }
 
     /// Host: whether the sensor repeats commands in its replies (`ECHO ON`); set
@@ -334,45 +400,7 @@ impl IldLink {
                 self.reply_parser = None;
             }
         }
-        let events = self.decoder.push(bytes);
-        self.absorb_words(events, arrived);
-    }
-
-    fn absorb_words(&mut self, events: Vec<IldEvent>, arrived: Instant) {
-        for event in events {
-            let word = match event {
-                Ok(word) => word,
-                Err(gap) => {
-                    self.counters.sync_losses += 1;
-                    self.counters.skipped_bytes += gap.len;
-                    continue;
-                }
-            };
-            if word.first_in_cycle {
-                if let Some(unfinished) = self.partial.take() {
-                    self.counters.incomplete_cycles += 1;
-                    self.cycles.push_back(unfinished);
-                }
-                self.partial = Some(IldCycle {
-                    distance: IldValue::from_raw(word.raw),
-                    extras: Vec::new(),
-                    arrived,
-                    offset: word.offset,
-                });
-            } else if let (Some(cycle), Some(_)) = (&mut self.partial, word.index_in_cycle) {
-                cycle.extras.push(word.raw);
-                cycle.arrived = arrived;
-            } else {
-                self.counters.orphan_values += 1;
-            }
-            if self
-                .partial
-                .as_ref()
-                .is_some_and(|c| 1 + c.extras.len() >= self.values_per_cycle)
-            {
-                self.cycles.extend(self.partial.take());
-            }
-        }
+        self.assembler.push(bytes, arrived, &mut self.cycles);
     }
 
     fn absorb_as_device(&mut self, bytes: &[u8]) {

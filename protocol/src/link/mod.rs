@@ -29,7 +29,7 @@ pub mod watchdog;
 pub use can::{CanLink, LinkStats, RecvError};
 pub use capture::{ByteCapture, CanCapture, CaptureClock, VirtualClock};
 pub use error::{LinkError, LinkResult};
-pub use ild::{IldCycle, IldLink, IldRequest};
+pub use ild::{IldCycle, IldCycleAssembler, IldLink, IldRequest};
 pub use line::SerialLine;
 pub use pty::PtyPair;
 pub use role::Role;

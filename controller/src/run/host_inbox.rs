@@ -1,0 +1,172 @@
+//! What the host does with each frame it receives on the mirror's link, free of I/O and
+//! clocks: angle readings are handed back to the loop, the nodes' status and fault frames are
+//! kept as events, Distance frames (a sensor sharing the mirror's link) are kept, and
+//! malformed and foreign frames are counted. A node's LinkTimeout fault ends the run.
+
+use scanhil_protocol::can::CanFrame;
+use scanhil_protocol::ild::IldValue;
+use scanhil_protocol::message::{FaultKind, Message, MessageError, NodeId, NodeState};
+use scanhil_protocol::plant_units::SensingPair;
+
+use super::host_loop::LoopError;
+
+/// A status or fault frame the node sent, with the loop time it was received at.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct NodeEvent {
+    /// Loop time at reception, s.
+    pub t_s: f64,
+    /// The node that sent it.
+    pub node: NodeId,
+    /// The state, for a status frame.
+    pub status: Option<NodeState>,
+    /// The fault, for a fault frame.
+    pub fault: Option<FaultKind>,
+    /// The step counter the node stamped on it (24 bits in a status, 16 in a fault).
+    pub step: u32,
+}
+
+/// Counters of the mirror link.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct MirrorLinkCounters {
+    /// Angle readings received.
+    pub angle_readings: u64,
+    /// Angle readings whose sequence counter was not the one waited for (skipped or stale).
+    pub angle_sequence_gaps: u64,
+    /// Frames with a loop id and a malformed payload.
+    pub malformed_frames: u64,
+    /// Frames with ids that are not loop messages (other traffic).
+    pub foreign_frames: u64,
+}
+
+/// A Distance frame's counter and value, with its arrival (for a real sensor's clock).
+pub type CanDistance = (u32, IldValue, tokio::time::Instant);
+
+/// The received frames of one mirror link, filed.
+#[derive(Debug, Clone)]
+pub struct HostInbox {
+    link: String,
+    events: Vec<NodeEvent>,
+    distances: Vec<CanDistance>,
+    counters: MirrorLinkCounters,
+}
+
+impl HostInbox {
+    /// An empty inbox for the link named `link` (the name goes into its errors).
+    #[must_use]
+    pub fn new(link: &str) -> HostInbox {
+        HostInbox {
+            link: link.to_owned(),
+            events: Vec::new(),
+            distances: Vec::new(),
+            counters: MirrorLinkCounters::default(),
+        }
+    }
+
+    /// The link's name.
+    #[must_use]
+    pub fn link(&self) -> &str {
+        &self.link
+    }
+
+    /// Files a frame received at loop time `t_s` (wall-clock `arrived`, kept with Distance
+    /// frames); returns an angle reading's sequence counter and angles. Angle readings are
+    /// not counted here: [`Self::count_reading`] does, where the loop takes one.
+    ///
+    /// # Errors
+    /// [`LoopError::NodeFault`] when a node reports its own link timeout (the run ends).
+    pub fn classify(
+        &mut self,
+        frame: &CanFrame,
+        t_s: f64,
+        arrived: tokio::time::Instant,
+    ) -> Result<Option<(u16, SensingPair)>, LoopError> {
+        let message = match Message::decode(frame) {
+            Ok(message) => message,
+            Err(MessageError::UnknownId(_)) => {
+                self.counters.foreign_frames += 1;
+                return Ok(None);
+            }
+            Err(_) => {
+                self.counters.malformed_frames += 1;
+                return Ok(None);
+            }
+        };
+        match message {
+            Message::AngleReading(reading) => return Ok(Some((reading.seq, reading.rad()))),
+            Message::Distance(distance) => {
+                self.distances
+                    .push((distance.counter, distance.value, arrived));
+            }
+            Message::AnglesDistanceFd { angles, distance } => {
+                self.distances
+                    .push((distance.counter, distance.value, arrived));
+                return Ok(Some((angles.seq, angles.rad())));
+            }
+            Message::Status(status) if status.node != NodeId::Controller => {
+                self.events.push(NodeEvent {
+                    t_s,
+                    node: status.node,
+                    status: Some(status.state),
+                    fault: None,
+                    step: status.step,
+                });
+            }
+            Message::Fault(fault) if fault.node != NodeId::Controller => {
+                self.events.push(NodeEvent {
+                    t_s,
+                    node: fault.node,
+                    status: None,
+                    fault: Some(fault.kind),
+                    step: u32::from(fault.step),
+                });
+                if fault.kind == FaultKind::LinkTimeout {
+                    return Err(LoopError::NodeFault {
+                        link: self.link.clone(),
+                        node: fault.node,
+                        kind: fault.kind,
+                        step: fault.step,
+                    });
+                }
+            }
+            _ => {}
+        }
+        Ok(None)
+    }
+
+    /// Counts an angle reading with sequence counter `seq` taken while period `expected` was
+    /// awaited; returns how far ahead of it the reading is (mod 2^16; 0: the one awaited,
+    /// anything else is counted as a sequence gap).
+    pub fn count_reading(&mut self, seq: u16, expected: u64) -> u16 {
+        self.counters.angle_readings += 1;
+        let offset = seq.wrapping_sub(expected as u16);
+        if offset != 0 {
+            self.counters.angle_sequence_gaps += 1;
+        }
+        offset
+    }
+
+    /// Whether the newest event is the mirror node's Status(ready) (its last frame of a run).
+    #[must_use]
+    pub fn node_ready_last(&self) -> bool {
+        self.events.last().is_some_and(|event| {
+            event.node == NodeId::Fsm && event.status == Some(NodeState::Ready)
+        })
+    }
+
+    /// Status and fault frames received so far.
+    #[must_use]
+    pub fn events(&self) -> &[NodeEvent] {
+        &self.events
+    }
+
+    /// Distance frames received so far, in order, with their arrival (taken out).
+    pub fn take_distances(&mut self) -> Vec<CanDistance> {
+        std::mem::take(&mut self.distances)
+    }
+
+    /// The counters so far.
+    #[must_use]
+    pub fn counters(&self) -> MirrorLinkCounters {
+        self.counters
+    }
+}

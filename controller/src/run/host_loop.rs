@@ -1,0 +1,408 @@
+//! The host's lockstep loop as a state machine, free of I/O and clocks (as
+//! [`scanhil_emulator::serve::mirror_node`] is for the node). It holds the controller, the
+//! trajectory and the [`LoopRecord`]; a transport asks it for the [`HostAction`] to take,
+//! sends the frames it gives (each stamped with its loop time), hands it the frames that
+//! arrive and reports a link that failed or stayed silent.
+//!
+//! Per period k: the command from the newest angle reading, CoilCommand(k) and Step(k) at loop
+//! time `k * Ta`, then AngleReading(k), awaited at loop time `(k + 1) * Ta`. A node's
+//! LinkTimeout fault or a failed link stops the loop (zero current commanded, best effort);
+//! after the last period the controller's Status(ready) at `periods * Ta` ends the run, and
+//! the node's Status(ready) (or its hang-up or silence) is the last thing awaited.
+//!
+//! [`super::lockstep`] runs it over a real link; the `scanhil-lab` crate runs it in process.
+
+use std::time::Duration;
+
+use scanhil_protocol::can::CanFrame;
+use scanhil_protocol::link::LinkError;
+use scanhil_protocol::message::{
+    CoilCommand, FaultKind, Message, NodeId, NodeState, Status, U24_MAX,
+};
+use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
+
+use super::host_inbox::HostInbox;
+use super::pairing::AngleTrack;
+use super::realtime::ControllerTiming;
+use super::tracking::TrackingRecorder;
+use crate::scan_controller::ScanController;
+use crate::trajectory::Trajectory;
+
+/// Why the loop stopped early.
+#[derive(Debug, thiserror::Error)]
+pub enum LoopError {
+    /// No answer within the watchdog's allowance.
+    #[error(
+        "link timeout on {link}: no angle reading for period {period} within {waited:?} ({periods} periods' allowance)"
+    )]
+    LinkTimeout {
+        /// The link.
+        link: String,
+        /// The period waited for.
+        period: u64,
+        /// The watchdog's periods.
+        periods: u32,
+        /// The wall-clock time waited.
+        waited: Duration,
+    },
+    /// A node reported a fault that ends the run (its own link timeout).
+    #[error("{link}: the {node:?} node reported {kind:?} at step {step} (mod 2^16)")]
+    NodeFault {
+        /// The link.
+        link: String,
+        /// The node.
+        node: NodeId,
+        /// The fault.
+        kind: FaultKind,
+        /// Its step counter.
+        step: u16,
+    },
+    /// A message could not be encoded.
+    #[error("cannot encode a frame: {0}")]
+    Encode(String),
+    /// The transport failed (hang-up: the emulator or adapter went away).
+    #[error(transparent)]
+    Link(#[from] LinkError),
+}
+
+/// What a loop run produced.
+#[derive(Debug)]
+pub struct LoopRecord {
+    /// The angle readings, reading k at loop time `(k + 1) * period`.
+    pub angles: AngleTrack,
+    /// Reference against measurement.
+    pub tracking: TrackingRecorder,
+    /// Periods completed.
+    pub periods_done: u64,
+    /// Periods asked for.
+    pub periods_planned: u64,
+    /// Periods in which the coil command was clipped.
+    pub saturated_periods: u64,
+    /// Why the run stopped early, if it did.
+    pub stopped_by: Option<LoopError>,
+    /// Real time only: the controller's side of the timing.
+    pub controller_timing: Option<ControllerTiming>,
+    /// Real time only: the instant of loop time 0 as seen here (the earliest reading's
+    /// arrival minus its loop time), to place a real sensor's samples on the loop's time axis.
+    pub loop_epoch: Option<tokio::time::Instant>,
+}
+
+impl LoopRecord {
+    /// An empty record for a loop of `periods` periods of `period_s`.
+    #[must_use]
+    pub fn new(period_s: f64, periods: u64) -> LoopRecord {
+        LoopRecord {
+            angles: AngleTrack::new(period_s),
+            tracking: TrackingRecorder::default(),
+            periods_done: 0,
+            periods_planned: periods,
+            saturated_periods: 0,
+            stopped_by: None,
+            controller_timing: None,
+            loop_epoch: None,
+        }
+    }
+
+    /// Records reading `k` (the angles at loop time `(k + 1) * period`) against the reference
+    /// at that instant.
+    pub fn push_reading(&mut self, trajectory: &Trajectory, k: u64, angles: SensingPair) {
+        let t_s = (k + 1) as f64 * self.angles.period_s();
+        self.angles.push(angles);
+        self.tracking.record(trajectory.reference_rad(t_s), angles);
+        self.periods_done = k + 1;
+    }
+}
+
+/// A frame to send and the loop time its recording is stamped with, s.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct StampedFrame {
+    /// The frame.
+    pub frame: CanFrame,
+    /// Loop time, s.
+    pub t_s: f64,
+}
+
+/// What the transport does next.
+#[derive(Debug, Clone, PartialEq)]
+pub enum HostAction {
+    /// Send these frames in order; report a failure with [`HostLoop::on_error`].
+    Send(Vec<StampedFrame>),
+    /// Wait for AngleReading(`period`) within the watchdog's allowance; frames received
+    /// meanwhile are stamped with loop time `t_s` and go to [`HostLoop::on_frame`].
+    AwaitReading {
+        /// The period whose reading is awaited.
+        period: u64,
+        /// Loop time of receptions, s.
+        t_s: f64,
+    },
+    /// The run is ending: wait for the node's Status(ready) within the watchdog's allowance
+    /// (its hang-up or silence end the run as well).
+    AwaitNodeReady {
+        /// Loop time of receptions, s.
+        t_s: f64,
+    },
+    /// The run is over: [`HostLoop::finish`].
+    Done,
+}
+
+/// What a received frame meant for the loop.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Heard {
+    /// Nothing for the loop's progress (filed in the inbox).
+    Nothing,
+    /// The awaited reading of this period: the period is done.
+    Reading(u64),
+    /// The loop stops (a node's LinkTimeout fault).
+    Stopped,
+    /// The node's Status(ready) after the controller's: the run is over.
+    Ended,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Phase {
+    /// Period k's frames go out next.
+    Start(u64),
+    /// AngleReading(k) is awaited.
+    Reading(u64),
+    /// Stopped in period k: the zero command goes out next.
+    Stopping(u64),
+    /// The controller's Status(ready) goes out next.
+    Closing,
+    /// The node's Status(ready) is awaited.
+    NodeReady,
+    /// Over.
+    Done,
+}
+
+/// The host's side of a lockstep run.
+#[derive(Debug)]
+pub struct HostLoop<'a> {
+    controller: &'a mut ScanController,
+    trajectory: &'a Trajectory,
+    period_s: f64,
+    inbox: HostInbox,
+    record: LoopRecord,
+    measured: SensingPair,
+    phase: Phase,
+}
+
+impl<'a> HostLoop<'a> {
+    /// A run of `periods` periods of `controller` along `trajectory`, filing what it receives
+    /// into `inbox`.
+    pub fn new(
+        controller: &'a mut ScanController,
+        trajectory: &'a Trajectory,
+        periods: u64,
+        inbox: HostInbox,
+    ) -> HostLoop<'a> {
+        let period_s = controller.period_s();
+        HostLoop {
+            controller,
+            trajectory,
+            period_s,
+            inbox,
+            record: LoopRecord::new(period_s, periods),
+            measured: SensingPair::default(),
+            phase: Phase::Start(0),
+        }
+    }
+
+    /// What to do next. Frames returned in [`HostAction::Send`] count as sent.
+    pub fn next_action(&mut self) -> HostAction {
+        match self.phase {
+            Phase::Start(k) if k >= self.record.periods_planned => {
+                self.phase = Phase::Closing;
+                self.next_action()
+            }
+            Phase::Start(k) => {
+                let reference = self.trajectory.reference_rad(k as f64 * self.period_s);
+                let command = self.controller.step(reference, self.measured);
+                match period_frames(k, command, self.period_s) {
+                    Ok(frames) => {
+                        self.phase = Phase::Reading(k);
+                        HostAction::Send(frames.to_vec())
+                    }
+                    Err(error) => {
+                        self.stop(k, error);
+                        self.next_action()
+                    }
+                }
+            }
+            Phase::Reading(k) => HostAction::AwaitReading {
+                period: k,
+                t_s: (k + 1) as f64 * self.period_s,
+            },
+            Phase::Stopping(k) => {
+                self.phase = Phase::Done;
+                let t_s = (k + 1) as f64 * self.period_s;
+                match coil_command_frame(k, ActuatorPair::default(), t_s) {
+                    Ok(frame) => HostAction::Send(vec![frame]),
+                    Err(_) => HostAction::Done,
+                }
+            }
+            Phase::Closing => match end_frame(self.record.periods_done, self.period_s) {
+                Ok(frame) => {
+                    self.phase = Phase::NodeReady;
+                    HostAction::Send(vec![frame])
+                }
+                Err(error) => {
+                    self.record.stopped_by = Some(error);
+                    self.phase = Phase::Done;
+                    HostAction::Done
+                }
+            },
+            Phase::NodeReady => HostAction::AwaitNodeReady {
+                t_s: self.end_time_s(),
+            },
+            Phase::Done => HostAction::Done,
+        }
+    }
+
+    /// A frame arrived (at wall-clock `arrived`, kept with Distance frames).
+    pub fn on_frame(&mut self, frame: &CanFrame, arrived: tokio::time::Instant) -> Heard {
+        match self.phase {
+            Phase::Reading(k) => {
+                let t_s = (k + 1) as f64 * self.period_s;
+                match self.inbox.classify(frame, t_s, arrived) {
+                    Err(error) => {
+                        self.stop(k, error);
+                        Heard::Stopped
+                    }
+                    Ok(Some((seq, angles))) => {
+                        if self.inbox.count_reading(seq, k) != 0 {
+                            // Another period's reading: counted as a gap, still waiting.
+                            return Heard::Nothing;
+                        }
+                        self.measured = angles;
+                        self.record.push_reading(self.trajectory, k, angles);
+                        self.phase = Phase::Start(k + 1);
+                        Heard::Reading(k)
+                    }
+                    Ok(None) => Heard::Nothing,
+                }
+            }
+            Phase::NodeReady => {
+                let events = self.inbox.events().len();
+                match self.inbox.classify(frame, self.end_time_s(), arrived) {
+                    Err(error) => {
+                        self.record.stopped_by = Some(error);
+                        self.phase = Phase::Done;
+                        Heard::Stopped
+                    }
+                    Ok(_) if self.inbox.events().len() > events && self.inbox.node_ready_last() => {
+                        self.phase = Phase::Done;
+                        Heard::Ended
+                    }
+                    Ok(_) => Heard::Nothing,
+                }
+            }
+            // Nothing is awaited: filed, but it changes nothing.
+            Phase::Start(_) | Phase::Stopping(_) | Phase::Closing | Phase::Done => {
+                let _ = self.inbox.classify(frame, self.end_time_s(), arrived);
+                Heard::Nothing
+            }
+        }
+    }
+
+    /// The link failed, or stayed silent for the watchdog's allowance
+    /// ([`LoopError::LinkTimeout`]). While a reading is awaited the loop stops; at the end a
+    /// hang-up or silence ends the run as planned (the scan is complete), anything else is
+    /// recorded as what stopped it. A failed send of the stop's zero command is ignored.
+    pub fn on_error(&mut self, error: LoopError) {
+        match self.phase {
+            Phase::Reading(k) => self.stop(k, error),
+            Phase::NodeReady => {
+                let quiet_end = matches!(
+                    error,
+                    LoopError::LinkTimeout { .. } | LoopError::Link(LinkError::HangUp { .. })
+                );
+                if !quiet_end {
+                    self.record.stopped_by = Some(error);
+                }
+                self.phase = Phase::Done;
+            }
+            Phase::Start(_) | Phase::Stopping(_) | Phase::Closing | Phase::Done => {}
+        }
+    }
+
+    /// The record so far.
+    #[must_use]
+    pub fn record(&self) -> &LoopRecord {
+        &self.record
+    }
+
+    /// The inbox so far.
+    #[must_use]
+    pub fn inbox(&self) -> &HostInbox {
+        &self.inbox
+    }
+
+    /// Ends the run: the record (with the controller's saturated periods) and the inbox.
+    #[must_use]
+    pub fn finish(mut self) -> (LoopRecord, HostInbox) {
+        self.record.saturated_periods = self.controller.saturated_periods();
+        (self.record, self.inbox)
+    }
+
+    fn stop(&mut self, k: u64, error: LoopError) {
+        self.record.stopped_by = Some(error);
+        self.phase = Phase::Stopping(k);
+    }
+
+    /// Loop time of the run's end, s.
+    fn end_time_s(&self) -> f64 {
+        self.record.periods_done as f64 * self.period_s
+    }
+}
+
+/// Lockstep period `k`'s frames: CoilCommand(k) and Step(k), at loop time `k * period_s`.
+///
+/// # Errors
+/// [`LoopError::Encode`] when the command cannot be encoded.
+pub fn period_frames(
+    k: u64,
+    command_a: ActuatorPair,
+    period_s: f64,
+) -> Result<[StampedFrame; 2], LoopError> {
+    let t_s = k as f64 * period_s;
+    Ok([
+        coil_command_frame(k, command_a, t_s)?,
+        stamped(&Message::Step { step: k as u32 }, t_s)?,
+    ])
+}
+
+/// CoilCommand(seq = k mod 2^16) at loop time `t_s`.
+///
+/// # Errors
+/// [`LoopError::Encode`] when the command cannot be encoded.
+pub fn coil_command_frame(
+    k: u64,
+    command_a: ActuatorPair,
+    t_s: f64,
+) -> Result<StampedFrame, LoopError> {
+    let command = Message::CoilCommand(CoilCommand::from_amps(k as u16, command_a));
+    stamped(&command, t_s)
+}
+
+/// The controller's Status(ready) after `periods_done` periods, at loop time
+/// `periods_done * period_s`: the end of a lockstep run.
+///
+/// # Errors
+/// [`LoopError::Encode`] when the status cannot be encoded.
+pub fn end_frame(periods_done: u64, period_s: f64) -> Result<StampedFrame, LoopError> {
+    let t_s = periods_done as f64 * period_s;
+    let status = Message::Status(Status {
+        node: NodeId::Controller,
+        state: NodeState::Ready,
+        step: (periods_done & u64::from(U24_MAX)) as u32,
+        node_time_us: ((t_s * 1e6).round() as u64 & u64::from(U24_MAX)) as u32,
+    });
+    stamped(&status, t_s)
+}
+
+fn stamped(message: &Message, t_s: f64) -> Result<StampedFrame, LoopError> {
+    let frame = message
+        .encode()
+        .map_err(|error| LoopError::Encode(error.to_string()))?;
+    Ok(StampedFrame { frame, t_s })
+}

@@ -1,0 +1,204 @@
+//! The host's lockstep loop as a state machine, without I/O: frames fed in by hand, what it
+//! sends, when it stops and how it ends.
+
+use std::path::Path;
+use std::time::Duration;
+
+use scanhil_controller::run::host_inbox::HostInbox;
+use scanhil_controller::run::host_loop::{Heard, HostAction, HostLoop, LoopError};
+use scanhil_controller::scan_controller::ScanController;
+use scanhil_controller::settings::ControllerSettings;
+use scanhil_controller::trajectory::Trajectory;
+use scanhil_protocol::can::{CanFrame, CanId};
+use scanhil_protocol::message::{
+    AngleReading, Fault, FaultKind, Message, NodeId, NodeState, Status, ids,
+};
+use scanhil_protocol::plant_units::SensingPair;
+
+fn controller() -> ScanController {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/controllers/pid-series.json");
+    ControllerSettings::load(&path).unwrap().build().unwrap()
+}
+
+fn trajectory() -> Trajectory {
+    Trajectory::Lissajous {
+        alpha_hz: 52.0,
+        beta_hz: 27.0,
+        alpha_amplitude_rad: 0.01,
+        beta_amplitude_rad: 0.005,
+        relative_phase_rad: 0.0,
+    }
+}
+
+fn now() -> tokio::time::Instant {
+    tokio::time::Instant::now()
+}
+
+fn reading(seq: u16) -> CanFrame {
+    let angles = SensingPair {
+        alpha: 1e-4,
+        beta: -2e-4,
+    };
+    Message::AngleReading(AngleReading::from_rad(seq, angles))
+        .encode()
+        .unwrap()
+}
+
+fn node_status(state: NodeState, step: u32) -> CanFrame {
+    Message::Status(Status {
+        node: NodeId::Fsm,
+        state,
+        step,
+        node_time_us: 0,
+    })
+    .encode()
+    .unwrap()
+}
+
+fn decoded(action: HostAction) -> Vec<(Message, f64)> {
+    let HostAction::Send(frames) = action else {
+        panic!("expected frames to send, got {action:?}");
+    };
+    frames
+        .iter()
+        .map(|f| (Message::decode(&f.frame).unwrap(), f.t_s))
+        .collect()
+}
+
+#[test]
+fn a_run_sends_command_and_step_per_period_counts_what_it_files_and_ends_with_the_node() {
+    let mut controller = controller();
+    let period_s = controller.period_s();
+    let trajectory = trajectory();
+    let mut host = HostLoop::new(&mut controller, &trajectory, 2, HostInbox::new("test"));
+    for k in 0..2u64 {
+        let sent = decoded(host.next_action());
+        assert_eq!(sent.len(), 2);
+        assert!(matches!(sent[0].0, Message::CoilCommand(c) if c.seq == k as u16));
+        assert_eq!(sent[1].0, Message::Step { step: k as u32 });
+        assert!(sent.iter().all(|(_, t_s)| *t_s == k as f64 * period_s));
+        let awaited = HostAction::AwaitReading {
+            period: k,
+            t_s: (k + 1) as f64 * period_s,
+        };
+        assert_eq!(host.next_action(), awaited);
+        // Foreign, malformed, a stale reading and a status: filed, the period goes on.
+        let foreign = CanFrame::new(CanId::standard(0x555).unwrap(), &[1, 2]).unwrap();
+        let malformed = CanFrame::new(CanId::standard(ids::ANGLE_READING).unwrap(), &[0]).unwrap();
+        assert_eq!(host.on_frame(&foreign, now()), Heard::Nothing);
+        assert_eq!(host.on_frame(&malformed, now()), Heard::Nothing);
+        assert_eq!(host.on_frame(&reading(k as u16 + 7), now()), Heard::Nothing);
+        let status = node_status(NodeState::Running, k as u32);
+        assert_eq!(host.on_frame(&status, now()), Heard::Nothing);
+        assert_eq!(host.next_action(), awaited);
+        assert_eq!(host.on_frame(&reading(k as u16), now()), Heard::Reading(k));
+    }
+    let end = decoded(host.next_action());
+    assert!(
+        matches!(end[..], [(Message::Status(s), t_s)] if s.node == NodeId::Controller
+            && s.state == NodeState::Ready && t_s == 2.0 * period_s),
+        "{end:?}"
+    );
+    assert_eq!(
+        host.next_action(),
+        HostAction::AwaitNodeReady {
+            t_s: 2.0 * period_s
+        }
+    );
+    assert_eq!(host.on_frame(&reading(1), now()), Heard::Nothing);
+    let ready = node_status(NodeState::Ready, 2);
+    assert_eq!(host.on_frame(&ready, now()), Heard::Ended);
+    assert_eq!(host.next_action(), HostAction::Done);
+
+    let (record, inbox) = host.finish();
+    assert_eq!(record.periods_done, 2);
+    assert!(record.stopped_by.is_none());
+    let counters = inbox.counters();
+    assert_eq!(counters.foreign_frames, 2);
+    assert_eq!(counters.malformed_frames, 2);
+    assert_eq!(
+        counters.angle_readings, 4,
+        "the reading after the end is not counted"
+    );
+    assert_eq!(counters.angle_sequence_gaps, 2);
+    let events = inbox.events();
+    assert_eq!(events.len(), 3);
+    assert_eq!(
+        events[0].t_s, period_s,
+        "filed at the loop time it was awaited at"
+    );
+    assert_eq!(events[2].status, Some(NodeState::Ready));
+    assert_eq!(events[2].t_s, 2.0 * period_s);
+}
+
+#[test]
+fn the_nodes_link_timeout_fault_stops_the_run_with_a_zero_command() {
+    let mut controller = controller();
+    let period_s = controller.period_s();
+    let trajectory = trajectory();
+    let mut host = HostLoop::new(&mut controller, &trajectory, 10, HostInbox::new("test"));
+    decoded(host.next_action());
+    assert_eq!(host.on_frame(&reading(0), now()), Heard::Reading(0));
+    decoded(host.next_action());
+    let fault = Message::Fault(Fault {
+        node: NodeId::Fsm,
+        kind: FaultKind::LinkTimeout,
+        detail: 200,
+        step: 1,
+    })
+    .encode()
+    .unwrap();
+    assert_eq!(host.on_frame(&fault, now()), Heard::Stopped);
+    let zero = decoded(host.next_action());
+    assert!(
+        matches!(zero[..], [(Message::CoilCommand(c), t_s)] if c.seq == 1
+            && c.current_a_ua == 0 && c.current_b_ua == 0 && t_s == 2.0 * period_s),
+        "{zero:?}"
+    );
+    assert_eq!(host.next_action(), HostAction::Done);
+    let (record, _) = host.finish();
+    assert_eq!(record.periods_done, 1);
+    assert!(matches!(
+        record.stopped_by,
+        Some(LoopError::NodeFault {
+            kind: FaultKind::LinkTimeout,
+            ..
+        })
+    ));
+}
+
+#[test]
+fn silence_stops_a_period_but_ends_the_run_quietly_after_the_last() {
+    let timeout = |period| LoopError::LinkTimeout {
+        link: "test".into(),
+        period,
+        periods: 1,
+        waited: Duration::ZERO,
+    };
+    let mut controller = controller();
+    let trajectory = trajectory();
+    let mut host = HostLoop::new(&mut controller, &trajectory, 1, HostInbox::new("test"));
+    decoded(host.next_action());
+    assert_eq!(host.on_frame(&reading(0), now()), Heard::Reading(0));
+    decoded(host.next_action());
+    host.on_error(timeout(1));
+    assert_eq!(host.next_action(), HostAction::Done);
+    let (record, _) = host.finish();
+    assert!(
+        record.stopped_by.is_none(),
+        "a node without the end exchange"
+    );
+
+    let mut host = HostLoop::new(&mut controller, &trajectory, 1, HostInbox::new("test"));
+    decoded(host.next_action());
+    host.on_error(timeout(0));
+    decoded(host.next_action());
+    assert_eq!(host.next_action(), HostAction::Done);
+    let (record, _) = host.finish();
+    assert_eq!(record.periods_done, 0);
+    assert!(matches!(
+        record.stopped_by,
+        Some(LoopError::LinkTimeout { .. })
+    ));
+}

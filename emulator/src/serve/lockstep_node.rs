@@ -1,0 +1,207 @@
+//! The mirror node's side of the lockstep exchange, free of I/O and clocks: a frame from the
+//! controller in, what to send back out, in the order it goes out. The serve loop
+//! ([`super::lockstep`]) and an in-process loop (the `scanhil-lab` crate) both run it, so a
+//! seed gives the same frames whichever transport carries them.
+//!
+//! Per Step(k) the node answers AngleReading(k), the sensor's samples of that period, a fault
+//! frame for each fault that started, and a Status frame every `1 / heartbeat_hz` seconds of
+//! loop time. The controller's own Status frame in a state other than running ends the run:
+//! the node answers Status(ready) as its last frame.
+
+use scanhil_protocol::can::CanFrame;
+use scanhil_protocol::message::{
+    AngleReading, Fault, FaultKind, Message, MessageError, NodeId, NodeState, Status, U24_MAX,
+};
+
+use super::mirror_node::{MirrorNode, NodeOutput};
+use crate::plant::{PlantError, PlantStep};
+use crate::sensor::IldSample;
+
+/// One thing to send, in order: a frame on the mirror's link, or the sensor's samples of the
+/// period (on the sensor's own port).
+#[derive(Debug, Clone, PartialEq)]
+pub enum NodeSend {
+    /// A frame on the mirror's CAN link.
+    Frame(CanFrame),
+    /// The sensor's samples of the period just stepped.
+    Samples(Vec<IldSample>),
+}
+
+/// What a frame from the controller asks of the node.
+#[derive(Debug, Clone, PartialEq)]
+pub enum NodeReply {
+    /// Not for the node (another id, a malformed payload: counted, or a status frame that
+    /// does not end the run): nothing to send, the watchdog is not fed.
+    Ignored,
+    /// A coil command or a Step: the watchdog is fed; send these in order (none after a
+    /// command).
+    Send(Vec<NodeSend>),
+    /// The controller ended the run: send this frame, the node's Status(ready), last.
+    EndOfRun(CanFrame),
+}
+
+/// Why the node cannot answer.
+#[derive(Debug, thiserror::Error)]
+pub enum LockstepNodeError {
+    /// The plant refused the command (non-finite).
+    #[error(transparent)]
+    Plant(#[from] PlantError),
+    /// A frame could not be encoded.
+    #[error("cannot encode a frame: {0}")]
+    Encode(#[from] MessageError),
+}
+
+/// The mirror node answering the controller frame by frame in lockstep.
+#[derive(Debug)]
+pub struct LockstepNode<'a> {
+    node: &'a mut MirrorNode,
+    heartbeat_every: u64,
+}
+
+impl<'a> LockstepNode<'a> {
+    /// Runs `node` in lockstep with a Status frame `heartbeat_hz` times per second of loop
+    /// time.
+    pub fn new(node: &'a mut MirrorNode, heartbeat_hz: f64) -> LockstepNode<'a> {
+        let heartbeat_every = periods_per_heartbeat(node.plant().period_s(), heartbeat_hz);
+        LockstepNode {
+            node,
+            heartbeat_every,
+        }
+    }
+
+    /// The node inside.
+    #[must_use]
+    pub fn node(&self) -> &MirrorNode {
+        self.node
+    }
+
+    /// Handles one frame from the controller.
+    ///
+    /// # Errors
+    /// [`LockstepNodeError`]: the plant refused a command, or a frame cannot be encoded.
+    pub fn on_frame(&mut self, frame: &CanFrame) -> Result<NodeReply, LockstepNodeError> {
+        let message = match Message::decode(frame) {
+            Ok(message) => message,
+            Err(MessageError::UnknownId(_)) => return Ok(NodeReply::Ignored),
+            Err(_) => {
+                self.node.on_malformed_frame();
+                return Ok(NodeReply::Ignored);
+            }
+        };
+        match message {
+            Message::CoilCommand(command) => {
+                self.node.on_command(command.seq, command.amps());
+                Ok(NodeReply::Send(Vec::new()))
+            }
+            Message::Step { step } => Ok(NodeReply::Send(self.step(step)?)),
+            Message::Status(status)
+                if status.node == NodeId::Controller && status.state != NodeState::Running =>
+            {
+                let k = self.node.next_period();
+                let period_s = self.node.plant().period_s();
+                Ok(NodeReply::EndOfRun(status_frame(
+                    NodeState::Ready,
+                    k,
+                    period_s,
+                )?))
+            }
+            _ => Ok(NodeReply::Ignored),
+        }
+    }
+
+    /// Step(`step`): advances the plant one period and returns what goes out, in order: the
+    /// angle reading, the sensor's samples, a fault frame for each fault that started, and a
+    /// Status frame on heartbeat periods.
+    ///
+    /// # Errors
+    /// As [`Self::on_frame`].
+    pub fn step(&mut self, step: u32) -> Result<Vec<NodeSend>, LockstepNodeError> {
+        let k = self.node.next_period();
+        self.node.check_step_counter(step);
+        let mut sends = Vec::new();
+        for output in self.node.step()? {
+            match output {
+                NodeOutput::Angles(step) => {
+                    sends.push(NodeSend::Frame(angle_frame(&step)?));
+                    sends.push(NodeSend::Samples(step.sensor_samples));
+                }
+                NodeOutput::Fault(kind, detail) => {
+                    sends.push(NodeSend::Frame(fault_frame(kind, detail, k)?));
+                }
+            }
+        }
+        if k.is_multiple_of(self.heartbeat_every) {
+            let period_s = self.node.plant().period_s();
+            sends.push(NodeSend::Frame(status_frame(
+                self.node.state(),
+                k,
+                period_s,
+            )?));
+        }
+        Ok(sends)
+    }
+
+    /// The watchdog fired after `missed_periods`: the coil currents drop to zero; returns the
+    /// LinkTimeout fault and the Status(fault) to send.
+    ///
+    /// # Errors
+    /// A frame that cannot be encoded.
+    pub fn on_link_timeout(&mut self, missed_periods: u32) -> Result<[CanFrame; 2], MessageError> {
+        let (fault, detail) = self.node.on_link_timeout(missed_periods);
+        let k = self.node.next_period();
+        let period_s = self.node.plant().period_s();
+        Ok([
+            fault_frame(fault, detail, k)?,
+            status_frame(NodeState::Fault, k, period_s)?,
+        ])
+    }
+}
+
+/// The AngleReading frame of a stepped period (sequence counter = period mod 2^16).
+///
+/// # Errors
+/// [`MessageError`] if the message cannot be encoded (never for the mirror's angles).
+pub fn angle_frame(step: &PlantStep) -> Result<CanFrame, MessageError> {
+    let reading = AngleReading::from_rad(step.period_index as u16, step.measured_angles_rad);
+    Message::AngleReading(reading).encode()
+}
+
+/// The mirror node's fault frame for a fault that started in period `k`.
+///
+/// # Errors
+/// [`MessageError`] if the message cannot be encoded.
+pub fn fault_frame(kind: FaultKind, detail: i32, k: u64) -> Result<CanFrame, MessageError> {
+    Message::Fault(Fault {
+        node: NodeId::Fsm,
+        kind,
+        detail,
+        step: k as u16,
+    })
+    .encode()
+}
+
+/// The mirror node's status frame in period `k` (its node time is the loop time, in us).
+///
+/// # Errors
+/// [`MessageError`] if the message cannot be encoded.
+pub fn status_frame(state: NodeState, k: u64, period_s: f64) -> Result<CanFrame, MessageError> {
+    let node_time_us = (k as f64 * period_s * 1e6).round() as u64;
+    Message::Status(Status {
+        node: NodeId::Fsm,
+        state,
+        step: (k & u64::from(U24_MAX)) as u32,
+        node_time_us: (node_time_us & u64::from(U24_MAX)) as u32,
+    })
+    .encode()
+}
+
+/// Periods between two status frames (at least 1).
+#[must_use]
+pub fn periods_per_heartbeat(period_s: f64, heartbeat_hz: f64) -> u64 {
+    let periods = (1.0 / (heartbeat_hz * period_s)).round();
+    if periods.is_finite() && periods >= 1.0 {
+        periods as u64
+    } else {
+        1
+    }
+}

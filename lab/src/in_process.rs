@@ -1,0 +1,345 @@
+//! A lockstep scenario run in one process. The host's [`HostLoop`] sends its frames; the
+//! in-memory transport records each in the candump capture and hands it to the mirror node's
+//! [`LockstepNode`] at once, which queues its answers for the host in the order the serve loop
+//! would write them to the pty. The sensor's samples go out as the ILD stream's bytes
+//! (recorded as `sensor.ild`) and are decoded by the host's [`IldSampleDecoder`].
+//!
+//! The recording matches a pty run frame for frame: the host records a received frame when it
+//! takes it from the queue, stamped with the loop time it was waiting at, so the frames that
+//! follow a period's angle reading (faults, status) are recorded after the next period's
+//! commands, as over the pty. Where the host would wait in vain (nothing queued), the
+//! transport answers with the watchdog's link timeout at once.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::Path;
+use std::time::Duration;
+
+use anyhow::{Context, bail};
+use scanhil_controller::run::host_inbox::HostInbox;
+use scanhil_controller::run::host_loop::{HostAction, HostLoop, LoopError};
+use scanhil_controller::run::output::{self, RunData};
+use scanhil_controller::run::pairing::SensorClock;
+use scanhil_controller::run::scenario::{NodeLink, Scenario, TimingMode};
+use scanhil_controller::run::sensor_link::IldSampleDecoder;
+use scanhil_controller::run::{EmulatedDevices, ScanEnd};
+use scanhil_emulator::scene::Part;
+use scanhil_emulator::sensor::IldSample;
+use scanhil_emulator::serve::lockstep_node::{LockstepNode, NodeReply, NodeSend};
+use scanhil_emulator::serve::mirror_node::MirrorNode;
+use scanhil_emulator::serve::sensor_port::SensorClockTrack;
+use scanhil_emulator::serve::{DEFAULT_HEARTBEAT_HZ, load_plant};
+use scanhil_protocol::can::CanFrame;
+use scanhil_protocol::ild::stream::encode_cycle;
+use scanhil_protocol::link::{CanCapture, CaptureClock, VirtualClock};
+
+/// The in-memory link's name (in the host's errors).
+pub const LINK_NAME: &str = "in-process:fsm";
+
+/// What an in-process run produced: what the output writer needs, and how it ended.
+#[derive(Debug)]
+pub struct InProcessOutcome {
+    /// The loop's record, the mirror link's counters and events, the sensor's samples, and
+    /// the node's summary in place of the emulator's.
+    pub run: RunData,
+    /// The sensor's clock as the emulated sensor declared it (`None`: no sample was sent).
+    pub sensor_clock: Option<SensorClock>,
+    /// How the run ended (as the output writer says, when it ran).
+    pub end: ScanEnd,
+}
+
+impl InProcessOutcome {
+    /// Writes the output folder of `scanhil scan` (report, point cloud, height map, plots)
+    /// into `out_dir`; returns how the run ended.
+    ///
+    /// # Errors
+    /// A file that cannot be written.
+    pub fn write(&self, scenario: &Scenario, out_dir: &Path) -> anyhow::Result<ScanEnd> {
+        output::write(scenario, &self.run, self.sensor_clock, out_dir)
+    }
+}
+
+/// Runs `scenario` (lockstep) in this process. With `out_dir`, records `fsm.log` and
+/// `sensor.ild` there and writes the output folder as `scanhil scan --out` does.
+///
+/// # Errors
+/// A scenario this loop cannot run (real time, a sensor on the mirror's CAN link, no scene),
+/// files that do not load or cannot be written, a controller or scene that disagrees with the
+/// rig (as `scanhil scan` refuses them), a plant error.
+pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProcessOutcome> {
+    if scenario.timing.mode != TimingMode::Lockstep {
+        bail!(
+            "{}: the in-process loop runs in lockstep only",
+            scenario.path.display()
+        );
+    }
+    let Some(scene_path) = &scenario.scene else {
+        bail!(
+            "{}: the in-process loop emulates the devices: the scenario needs a `scene`",
+            scenario.path.display()
+        );
+    };
+    let started = std::time::Instant::now();
+    let mut controller = scenario.build_controller()?;
+    let (scene, plant) = load_plant(scene_path, Some(scenario.seed))?;
+    let period_s = controller.period_s();
+    let rig_sensor_hz = scenario.rig.sensor.map(|sensor| sensor.measuring_rate_hz);
+    // A rig without a sensor runs the plant's sensor unread, as `scanhil scan` asks the
+    // emulator for no sensor link.
+    let serves_sensor = scene.has(Part::Sensor) && rig_sensor_hz.is_some();
+    EmulatedDevices {
+        period_s: plant.period_s(),
+        sensor_measuring_rate_hz: scene
+            .has(Part::Sensor)
+            .then(|| scene.sensor.unwrap_or_default().measuring_rate_hz),
+    }
+    .check(scene_path, period_s, rig_sensor_hz)?;
+    let measuring_rate_hz = rig_sensor_hz.unwrap_or_default();
+    let periods = (scenario.duration_s / period_s).round() as u64;
+    if serves_sensor && scenario.links.sensor == NodeLink::Uri("fsm".into()) {
+        bail!(
+            "{}: the in-process loop carries the sensor on the ILD stream only, not as \
+             Distance frames on the mirror's link",
+            scenario.path.display()
+        );
+    }
+    if let Some(dir) = out_dir {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let mut transport = Transport::new(out_dir, serves_sensor, measuring_rate_hz)?;
+    let mut node = MirrorNode::new(plant);
+    let mut lockstep_node = LockstepNode::new(&mut node, DEFAULT_HEARTBEAT_HZ);
+    let mut host = HostLoop::new(
+        &mut controller,
+        &scenario.trajectory,
+        periods,
+        HostInbox::new(LINK_NAME),
+    );
+    loop {
+        match host.next_action() {
+            HostAction::Done => break,
+            HostAction::Send(frames) => {
+                for frame in &frames {
+                    transport.host_sends(&frame.frame, frame.t_s, &mut lockstep_node)?;
+                }
+            }
+            HostAction::AwaitReading { period, t_s } => match transport.host_receives(t_s)? {
+                Some(frame) => {
+                    host.on_frame(&frame, tokio::time::Instant::now());
+                }
+                None => host.on_error(LoopError::LinkTimeout {
+                    link: LINK_NAME.to_owned(),
+                    period,
+                    periods: scenario.timing.watchdog_periods,
+                    waited: Duration::ZERO,
+                }),
+            },
+            HostAction::AwaitNodeReady { t_s } => match transport.host_receives(t_s)? {
+                Some(frame) => {
+                    host.on_frame(&frame, tokio::time::Instant::now());
+                }
+                None => host.on_error(LoopError::LinkTimeout {
+                    link: LINK_NAME.to_owned(),
+                    period: host.record().periods_done,
+                    periods: scenario.timing.watchdog_periods,
+                    waited: Duration::ZERO,
+                }),
+            },
+        }
+    }
+    let (record, mut inbox) = host.finish();
+    let node_summary = serde_json::json!({
+        "in_process": true,
+        "summary": {
+            "event": "summary",
+            "outcome": "finished",
+            "node": node.counters(),
+            "final_state": node.state(),
+            "held_coil_currents_a": node.held_command_a(),
+            "sensor": transport.sensor.as_ref().map(|sensor| sensor.track),
+            "timing": serde_json::Value::Null,
+        },
+    });
+    let sensor_clock = transport
+        .sensor
+        .as_ref()
+        .and_then(|sensor| sensor.track.counter_zero_s)
+        .map(|counter_zero_s| SensorClock {
+            measuring_rate_hz,
+            counter_zero_s,
+        });
+    let sensor = transport.finish()?;
+    let end = ScanEnd::of(&record);
+    let mut outcome = InProcessOutcome {
+        run: RunData {
+            record,
+            can_distances: inbox.take_distances(),
+            mirror_counters: inbox.counters(),
+            node_events: inbox.events().to_vec(),
+            sensor,
+            emulator_summary: Some(node_summary),
+            run_time_s: started.elapsed().as_secs_f64(),
+        },
+        sensor_clock,
+        end,
+    };
+    if let Some(dir) = out_dir {
+        outcome.end = outcome.write(scenario, dir)?;
+    }
+    Ok(outcome)
+}
+
+/// The in-memory links between the host and the node, with their recordings.
+struct Transport {
+    /// The node's frames, in the order it sent them, until the host takes them.
+    to_host: std::collections::VecDeque<CanFrame>,
+    /// The node answered the end of the run: it takes no more frames.
+    node_finished: bool,
+    clock: VirtualClock,
+    capture: Option<CanCapture>,
+    sensor: Option<MemorySensor>,
+}
+
+/// The ILD stream in memory: the emulated sensor's side (its clock) and the host's decoding.
+struct MemorySensor {
+    track: SensorClockTrack,
+    capture: Option<BufWriter<File>>,
+    decoder: IldSampleDecoder,
+}
+
+impl Transport {
+    fn new(
+        out_dir: Option<&Path>,
+        serves_sensor: bool,
+        measuring_rate_hz: f64,
+    ) -> anyhow::Result<Transport> {
+        let clock = VirtualClock::default();
+        let capture = out_dir
+            .map(|dir| {
+                let path = dir.join(output::FSM_LOG);
+                let file =
+                    File::create(&path).with_context(|| format!("creating {}", path.display()))?;
+                anyhow::Ok(CanCapture::new(
+                    file,
+                    output::FSM_INTERFACE,
+                    CaptureClock::Virtual(clock.clone()),
+                ))
+            })
+            .transpose()?;
+        let sensor = if serves_sensor {
+            let capture = out_dir
+                .map(|dir| {
+                    let path = dir.join(output::SENSOR_CAPTURE);
+                    File::create(&path)
+                        .map(BufWriter::new)
+                        .with_context(|| format!("creating {}", path.display()))
+                })
+                .transpose()?;
+            Some(MemorySensor {
+                track: SensorClockTrack {
+                    samples: 0,
+                    counter_zero_s: None,
+                    measuring_rate_hz,
+                },
+                capture,
+                decoder: IldSampleDecoder::new(),
+            })
+        } else {
+            None
+        };
+        Ok(Transport {
+            to_host: std::collections::VecDeque::new(),
+            node_finished: false,
+            clock,
+            capture,
+            sensor,
+        })
+    }
+
+    /// The host sends `frame` at loop time `t_s`: recorded, then handled by the node, whose
+    /// answers are queued for the host (frames) or go out on the ILD stream (samples).
+    fn host_sends(
+        &mut self,
+        frame: &CanFrame,
+        t_s: f64,
+        node: &mut LockstepNode<'_>,
+    ) -> anyhow::Result<()> {
+        self.record(frame, t_s)?;
+        if self.node_finished {
+            return Ok(());
+        }
+        match node.on_frame(frame)? {
+            NodeReply::Ignored => {}
+            NodeReply::Send(sends) => {
+                for send in sends {
+                    match send {
+                        NodeSend::Frame(frame) => self.to_host.push_back(frame),
+                        NodeSend::Samples(samples) => self.emit_samples(&samples)?,
+                    }
+                }
+            }
+            NodeReply::EndOfRun(ready) => {
+                self.to_host.push_back(ready);
+                self.node_finished = true;
+            }
+        }
+        Ok(())
+    }
+
+    /// The host takes the node's next frame at loop time `t_s` (recorded); `None` when the
+    /// node has sent nothing more.
+    fn host_receives(&mut self, t_s: f64) -> anyhow::Result<Option<CanFrame>> {
+        let frame = self.to_host.pop_front();
+        if let Some(frame) = &frame {
+            self.record(frame, t_s)?;
+        }
+        Ok(frame)
+    }
+
+    /// The sensor's samples as the ILD stream sends them (a distance and its counter per
+    /// output cycle), recorded and decoded on the host's side.
+    fn emit_samples(&mut self, samples: &[IldSample]) -> anyhow::Result<()> {
+        let Some(sensor) = &mut self.sensor else {
+            return Ok(());
+        };
+        for sample in samples {
+            sensor.track.count(sample);
+            let bytes = encode_cycle(&[sample.value.raw(), sample.counter]);
+            if let Some(capture) = &mut sensor.capture {
+                capture
+                    .write_all(&bytes)
+                    .context("recording the ILD stream")?;
+            }
+            sensor.decoder.push(&bytes, tokio::time::Instant::now());
+        }
+        Ok(())
+    }
+
+    fn record(&mut self, frame: &CanFrame, t_s: f64) -> anyhow::Result<()> {
+        if let Some(capture) = &mut self.capture {
+            self.clock.set(Duration::from_secs_f64(t_s));
+            capture
+                .record(frame)
+                .context("recording the mirror's link")?;
+        }
+        Ok(())
+    }
+
+    /// Flushes the recordings; returns the host's decoded sensor samples and counters.
+    fn finish(
+        self,
+    ) -> anyhow::Result<(
+        Vec<scanhil_controller::run::sensor_link::CountedSample>,
+        scanhil_controller::run::sensor_link::SensorCounters,
+    )> {
+        match self.sensor {
+            None => Ok(Default::default()),
+            Some(mut sensor) => {
+                if let Some(capture) = &mut sensor.capture {
+                    capture.flush().context("recording the ILD stream")?;
+                }
+                Ok(sensor.decoder.snapshot())
+            }
+        }
+    }
+}
