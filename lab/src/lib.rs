@@ -13,6 +13,10 @@
 //! - [`in_process`]: one scenario run in process, with its output folder.
 //! - [`emulated_imaging`]: ideal-tracking scans through the emulator's optics and sensor model
 //!   (scene files), imaged by the host's pipeline.
+//! - [`study`]: many variants of a scenario (seeds, noise, distance, controller,
+//!   discretisation) run across the cores, or written out for a batch system, and tabulated;
+//!   the binary `scanhil-study`.
 
 pub mod emulated_imaging;
 pub mod in_process;
+pub mod study;

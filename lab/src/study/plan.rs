@@ -136,8 +136,7 @@ pub fn describe(values: &BTreeMap<String, Value>) -> String {
 
 fn check_key(key: &str) -> anyhow::Result<()> {
     let (document, field) = key.split_once('.').unwrap_or((key, ""));
-    if !DOCUMENTS.contains(&document) || field.is_empty() || field.split('.').any(str::is_empty)
-    {
+    if !DOCUMENTS.contains(&document) || field.is_empty() || field.split('.').any(str::is_empty) {
         bail!(
             "key `{key}`: expected `<document>.<field>[.<field>...]` with a document of \
              {DOCUMENTS:?}"
@@ -146,7 +145,9 @@ fn check_key(key: &str) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn expand_grid(grid: &BTreeMap<String, Vec<Value>>) -> anyhow::Result<Vec<BTreeMap<String, Value>>> {
+fn expand_grid(
+    grid: &BTreeMap<String, Vec<Value>>,
+) -> anyhow::Result<Vec<BTreeMap<String, Value>>> {
     let mut count: usize = 1;
     for (key, values) in grid {
         if values.is_empty() {
@@ -276,8 +277,11 @@ fn set(document: &mut Value, field: &str, value: Value) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The path made absolute, with `..` resolved when the file exists.
 fn absolute(path: &Path) -> PathBuf {
-    std::path::absolute(path).unwrap_or_else(|_| path.to_owned())
+    std::fs::canonicalize(path)
+        .or_else(|_| std::path::absolute(path))
+        .unwrap_or_else(|_| path.to_owned())
 }
 
 fn read_json(path: &Path) -> anyhow::Result<Value> {
@@ -352,6 +356,9 @@ mod tests {
         assert_eq!(doc["sensor"]["noise_rms_um"], 0.0);
         assert_eq!(doc["optics"]["spot"]["samples"], 1);
         let error = set(&mut doc, "seed.x", 1.into()).unwrap_err();
-        assert!(error.to_string().contains("`seed` is not an object"), "{error}");
+        assert!(
+            error.to_string().contains("`seed` is not an object"),
+            "{error}"
+        );
     }
 }

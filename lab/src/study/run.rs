@@ -8,9 +8,8 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use scanhil_controller::run::scenario::Scenario;
 
-use super::plan::describe;
-use super::plan::Study;
-use super::table::RESULT_DIR;
+use super::plan::{Study, describe};
+use super::table::{FAILURE_FILE, RESULT_DIR};
 
 /// How a variant's run went.
 #[derive(Debug, Clone, PartialEq)]
@@ -47,11 +46,14 @@ pub fn run_variants(study: &Study, scenarios: &[PathBuf], jobs: usize) -> Vec<Va
                     };
                     let outcome = run_one(scenario).unwrap_or_else(|error| {
                         let message = format!("{error:#}");
-                        bar.println(format!(
-                            "variant {} ({}): {message}",
-                            i + 1,
-                            describe(&study.variants[i])
-                        ));
+                        bar.suspend(|| {
+                            eprintln!(
+                                "variant {} ({}): {message}",
+                                i + 1,
+                                describe(&study.variants[i])
+                            );
+                        });
+                        record_failure(scenario, &message);
                         VariantOutcome::Failed(message)
                     });
                     if let Ok(mut outcomes) = outcomes.lock() {
@@ -71,15 +73,27 @@ pub fn run_variants(study: &Study, scenarios: &[PathBuf], jobs: usize) -> Vec<Va
         .collect()
 }
 
+/// The result folder of the variant whose scenario file is `scenario_path`.
+fn result_dir(scenario_path: &Path) -> PathBuf {
+    scenario_path
+        .parent()
+        .unwrap_or(Path::new("."))
+        .join(RESULT_DIR)
+}
+
 /// Runs one variant's scenario in process into `<its folder>/result/`.
 fn run_one(scenario_path: &Path) -> anyhow::Result<VariantOutcome> {
     let scenario = Scenario::load(scenario_path)?;
-    let out_dir = scenario_path
-        .parent()
-        .unwrap_or(Path::new("."))
-        .join(RESULT_DIR);
-    crate::in_process::run(&scenario, &out_dir)?;
+    crate::in_process::run(&scenario, Some(&result_dir(scenario_path)))?;
     Ok(VariantOutcome::Ran)
+}
+
+/// Keeps why a variant could not run in its result folder, for the table
+/// ([`super::table::FAILURE_FILE`]); best effort, the message is printed as well.
+fn record_failure(scenario_path: &Path, message: &str) {
+    let dir = result_dir(scenario_path);
+    let _ = std::fs::create_dir_all(&dir);
+    let _ = std::fs::write(dir.join(FAILURE_FILE), format!("{message}\n"));
 }
 
 /// The number of worker threads by default: one per core.

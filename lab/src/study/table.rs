@@ -13,6 +13,8 @@ use super::plan::{Study, variant_dir};
 
 /// The result folder inside a variant's folder.
 pub const RESULT_DIR: &str = "result";
+/// In a result folder without a report: why the variant could not run.
+pub const FAILURE_FILE: &str = "failure.txt";
 
 /// One variant's figures.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -46,9 +48,8 @@ impl Row {
     /// report is missing or unreadable.
     #[must_use]
     pub fn from_result(study: &Study, out_dir: &Path, index: usize) -> Row {
-        let report_path = variant_dir(out_dir, index)
-            .join(RESULT_DIR)
-            .join("report.json");
+        let result = variant_dir(out_dir, index).join(RESULT_DIR);
+        let report_path = result.join("report.json");
         let mut row = Row {
             variant: index + 1,
             parameters: study.variants[index].clone(),
@@ -71,7 +72,8 @@ impl Row {
         let report = match report {
             Ok(report) => report,
             Err(problem) => {
-                row.problem = Some(problem);
+                let failure = std::fs::read_to_string(result.join(FAILURE_FILE));
+                row.problem = Some(failure.map_or(problem, |text| text.trim_end().to_owned()));
                 return row;
             }
         };
@@ -148,7 +150,15 @@ pub fn write_csv(out: &mut impl Write, keys: &[String], rows: &[Row]) -> std::io
         .chain(keys.iter().cloned())
         .chain(FIGURE_COLUMNS.iter().map(|c| (*c).to_owned()))
         .collect();
-    writeln!(out, "{}", header.iter().map(|h| quote(h)).collect::<Vec<_>>().join(","))?;
+    writeln!(
+        out,
+        "{}",
+        header
+            .iter()
+            .map(|h| quote(h))
+            .collect::<Vec<_>>()
+            .join(",")
+    )?;
     let figure = |v: Option<f64>| v.map_or(String::new(), |v| v.to_string());
     for row in rows {
         let mut cells = vec![row.variant.to_string()];
@@ -171,7 +181,11 @@ pub fn write_csv(out: &mut impl Write, keys: &[String], rows: &[Row]) -> std::io
             .map(figure),
         );
         cells.push(row.problem.clone().unwrap_or_default());
-        writeln!(out, "{}", cells.iter().map(|c| quote(c)).collect::<Vec<_>>().join(","))?;
+        writeln!(
+            out,
+            "{}",
+            cells.iter().map(|c| quote(c)).collect::<Vec<_>>().join(",")
+        )?;
     }
     Ok(())
 }

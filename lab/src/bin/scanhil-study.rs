@@ -1,0 +1,132 @@
+//! `scanhil-study`: runs a study (one scenario, many variants) and tabulates it.
+//!
+//! - `scanhil-study run STUDY --out DIR [--jobs N]`: writes the variants, runs them in this
+//!   process on N threads (default: one per core), writes `DIR/study.csv` and `study.json`.
+//! - `scanhil-study plan STUDY --out DIR`: writes the variants only and prints their scenario
+//!   files, one per line, for a batch system to run with `scanhil scan FILE --out
+//!   <its folder>/result`.
+//! - `scanhil-study collect STUDY --out DIR`: tabulates the result folders a batch system
+//!   wrote.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+use scanhil_lab::study::plan::Study;
+use scanhil_lab::study::run::{VariantOutcome, default_jobs, run_variants};
+use scanhil_lab::study::table::{Row, collect};
+
+#[derive(Debug, Parser)]
+#[command(
+    name = "scanhil-study",
+    version,
+    about = "Runs scanhil scenario variants as one study"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Write the variants, run them here across the cores, and tabulate them.
+    Run {
+        /// The study file.
+        study: PathBuf,
+        /// The study's folder (variants/, study.csv, study.json).
+        #[arg(long)]
+        out: PathBuf,
+        /// Worker threads (default: one per core).
+        #[arg(long)]
+        jobs: Option<usize>,
+    },
+    /// Write the variants' files only; print their scenario files.
+    Plan {
+        /// The study file.
+        study: PathBuf,
+        /// The study's folder.
+        #[arg(long)]
+        out: PathBuf,
+    },
+    /// Tabulate the result folders of variants run elsewhere.
+    Collect {
+        /// The study file.
+        study: PathBuf,
+        /// The study's folder.
+        #[arg(long)]
+        out: PathBuf,
+    },
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(code) => code,
+        Err(error) => {
+            eprintln!("scanhil-study: error: {error:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn run(cli: Cli) -> anyhow::Result<ExitCode> {
+    match cli.command {
+        Command::Run { study, out, jobs } => {
+            let study = Study::load(&study)?;
+            let jobs = jobs.unwrap_or_else(default_jobs);
+            if jobs == 0 {
+                anyhow::bail!("--jobs 0: at least one worker is needed");
+            }
+            let scenarios = study.write_variants(&out)?;
+            let started = std::time::Instant::now();
+            let outcomes = run_variants(&study, &scenarios, jobs);
+            let rows = collect(&study, &out)?;
+            let failed = outcomes
+                .iter()
+                .filter(|o| matches!(o, VariantOutcome::Failed(_)))
+                .count();
+            summarise(&rows, &out);
+            println!(
+                "{} variants on {jobs} threads in {:.2} s, {failed} failed",
+                rows.len(),
+                started.elapsed().as_secs_f64()
+            );
+            Ok(exit_code(&rows))
+        }
+        Command::Plan { study, out } => {
+            let study = Study::load(&study)?;
+            for scenario in study.write_variants(&out)? {
+                println!("{}", scenario.display());
+            }
+            Ok(ExitCode::SUCCESS)
+        }
+        Command::Collect { study, out } => {
+            let rows = collect(&Study::load(&study)?, &out)?;
+            summarise(&rows, &out);
+            Ok(exit_code(&rows))
+        }
+    }
+}
+
+fn summarise(rows: &[Row], out: &std::path::Path) {
+    for row in rows.iter().filter(|r| r.complete != Some(true)) {
+        eprintln!(
+            "variant {}: {}",
+            row.variant,
+            row.problem.as_deref().unwrap_or("incomplete")
+        );
+    }
+    println!(
+        "wrote {} and {}",
+        out.join("study.csv").display(),
+        out.join("study.json").display()
+    );
+}
+
+/// 0 when every variant completed, 3 when some did not (their rows say why).
+fn exit_code(rows: &[Row]) -> ExitCode {
+    if rows.iter().all(|r| r.complete == Some(true)) {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(3)
+    }
+}

@@ -1,0 +1,173 @@
+//! Studies: variants written as scenario files, run in process across threads, and tabulated;
+//! the same files run by `scanhil scan` (as a batch system would) give the same table row.
+
+#[allow(dead_code)]
+#[path = "../../tests/loop/util.rs"]
+mod util;
+
+use std::path::Path;
+
+use scanhil_controller::run::scenario::Scenario;
+use scanhil_lab::study::plan::{Study, variant_dir};
+use scanhil_lab::study::run::{VariantOutcome, run_variants};
+use scanhil_lab::study::table::{RESULT_DIR, collect};
+use util::{assert_success, root, run_scanhil};
+
+fn write_study(dir: &Path, body: &str) -> Study {
+    let path = dir.join("study.json");
+    let scenario = root().join("fixtures/scenarios/test-loop-small.json");
+    let text = format!(
+        r#"{{ "name": "t", "scenario": "{}", {body} }}"#,
+        scenario.display()
+    );
+    std::fs::write(&path, text).expect("writing the study");
+    Study::load(&path).expect("the study loads")
+}
+
+#[test]
+fn a_study_runs_its_variants_on_threads_and_tabulates_them() {
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let controllers = root().join("fixtures/controllers");
+    let study = write_study(
+        dir.path(),
+        &format!(
+            r#""grid": {{
+                "scenario.duration_s": [0.02],
+                "scenario.controller": ["{}", "{}"],
+                "controller.discretisation.method": ["tustin", "backward_euler"]
+            }}"#,
+            controllers.join("pid-series.json").display(),
+            controllers.join("pid-parallel.json").display(),
+        ),
+    );
+    let out = dir.path().join("out");
+    let scenarios = study
+        .write_variants(&out)
+        .expect("the variants are written");
+    assert_eq!(scenarios.len(), 4);
+    for scenario in &scenarios {
+        let loaded = Scenario::load(scenario).expect("a variant is a scenario scanhil loads");
+        assert!((loaded.duration_s - 0.02).abs() < 1e-12);
+    }
+    let outcomes = run_variants(&study, &scenarios, 2);
+    assert!(
+        outcomes.iter().all(|o| *o == VariantOutcome::Ran),
+        "{outcomes:?}"
+    );
+    let rows = collect(&study, &out).expect("the table is written");
+    assert_eq!(rows.len(), 4);
+    let alpha: Vec<f64> = rows
+        .iter()
+        .map(|row| {
+            assert_eq!(row.complete, Some(true), "{row:?}");
+            assert!(row.run_time_s.is_some_and(|t| t > 0.0), "{row:?}");
+            row.tracking_rms_relative_alpha.expect("a tracking figure")
+        })
+        .collect();
+    // Four controllers, four different tracking errors: the variants really differ.
+    for i in 0..4 {
+        for j in i + 1..4 {
+            assert_ne!(
+                alpha[i],
+                alpha[j],
+                "variants {} and {} track alike",
+                i + 1,
+                j + 1
+            );
+        }
+    }
+    let csv = std::fs::read_to_string(out.join("study.csv")).expect("study.csv");
+    assert_eq!(csv.lines().count(), 5, "{csv}");
+    assert!(csv.starts_with(
+        "variant,controller.discretisation.method,scenario.controller,scenario.duration_s,complete,"
+    ));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("study.json")).expect("json"))
+            .expect("study.json is JSON");
+    assert_eq!(json["rows"].as_array().map(Vec::len), Some(4));
+}
+
+#[test]
+fn a_variant_run_by_scanhil_scan_gives_the_same_row_as_in_process() {
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let study = write_study(
+        dir.path(),
+        r#""list": [ { "scenario.duration_s": 0.02, "scenario.seed": 5, "scene.seed": 9 } ]"#,
+    );
+    let in_process = dir.path().join("here");
+    let scenarios = study.write_variants(&in_process).expect("written");
+    assert_eq!(run_variants(&study, &scenarios, 1), [VariantOutcome::Ran]);
+    let here = collect(&study, &in_process).expect("table").remove(0);
+
+    let batch = dir.path().join("batch");
+    let scenarios = study.write_variants(&batch).expect("written");
+    let result = variant_dir(&batch, 0).join(RESULT_DIR);
+    let scenario = scenarios[0].to_str().expect("UTF-8");
+    let out = result.to_str().expect("UTF-8");
+    assert_success(
+        &run_scanhil(&["scan", scenario, "--out", out]),
+        "scanhil scan",
+    );
+    let there = collect(&study, &batch).expect("table").remove(0);
+    assert_eq!(here.complete, Some(true));
+    assert_eq!(here.parameters, there.parameters);
+    assert_eq!(
+        here.tracking_rms_relative_alpha,
+        there.tracking_rms_relative_alpha
+    );
+    assert_eq!(
+        here.tracking_rms_relative_beta,
+        there.tracking_rms_relative_beta
+    );
+}
+
+#[test]
+fn a_variant_that_cannot_run_is_a_row_with_its_reason() {
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let study = write_study(
+        dir.path(),
+        r#""list": [
+            { "scenario.duration_s": 0.02 },
+            { "scenario.duration_s": 0.02, "controller.discretisation.method": "nonsense" }
+        ]"#,
+    );
+    let out = dir.path().join("out");
+    let scenarios = study.write_variants(&out).expect("written");
+    let outcomes = run_variants(&study, &scenarios, 2);
+    assert_eq!(outcomes[0], VariantOutcome::Ran);
+    assert!(matches!(&outcomes[1], VariantOutcome::Failed(m) if m.contains("nonsense")));
+    let rows = collect(&study, &out).expect("table");
+    assert_eq!(rows[0].complete, Some(true));
+    assert_eq!(rows[1].complete, None);
+    let problem = rows[1].problem.as_deref().unwrap_or_default();
+    assert!(problem.contains("nonsense"), "{problem}");
+}
+
+#[test]
+fn study_files_with_bad_keys_or_shapes_are_refused_naming_the_file() {
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    for (body, expected) in [
+        (r#""grid": { "plant.seed": [1] }"#, "plant.seed"),
+        (r#""list": []"#, "no variant"),
+        (
+            r#""grid": { "scenario.seed": [1] }, "list": [{}]"#,
+            "exactly one",
+        ),
+    ] {
+        let path = dir.path().join("bad.json");
+        let scenario = root().join("fixtures/scenarios/test-loop-small.json");
+        std::fs::write(
+            &path,
+            format!(
+                r#"{{ "name": "t", "scenario": "{}", {body} }}"#,
+                scenario.display()
+            ),
+        )
+        .expect("writing");
+        let error = format!("{:#}", Study::load(&path).expect_err("refused"));
+        assert!(
+            error.contains("bad.json") && error.contains(expected),
+            "{error}"
+        );
+    }
+}
