@@ -27,7 +27,13 @@ fn the_same_seed_gives_bit_identical_recordings_and_reports() {
         report
     });
     assert_eq!(first, second, "report.json differs beyond its run time");
-    for file in ["fsm.log", "sensor.ild", "points.ply", "height_map.png", "height_map.csv"] {
+    for file in [
+        "fsm.log",
+        "sensor.ild",
+        "points.ply",
+        "height_map.png",
+        "height_map.csv",
+    ] {
         let first = std::fs::read(runs[0].path().join(file)).expect("first run's file");
         let second = std::fs::read(runs[1].path().join(file)).expect("second run's file");
         assert!(!first.is_empty(), "{file} is empty");
