@@ -9,6 +9,7 @@
 //! - [`mirror_link`]: the mirror node seen from the controller: exchanges, status, faults,
 //!   watchdog.
 //! - [`sensor_link`]: the ILD stream seen from the controller, with its raw recording.
+//! - [`sensor_setup`]: configuring and reading back the sensor before a scan.
 //! - [`bus_load`]: refusing a loop that cannot fit on a link's bit rate.
 //! - [`lockstep`], [`realtime`]: the two loops.
 //! - [`pairing`]: distances with angles by the sensor's own time.
@@ -31,6 +32,7 @@ pub mod progress;
 pub mod realtime;
 pub mod scenario;
 pub mod sensor_link;
+pub mod sensor_setup;
 pub mod tracking;
 pub mod truth;
 
@@ -148,6 +150,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             period_s,
             duration_s: scenario.duration_s,
             record_dir: Some(out_dir.clone()),
+            sensor_expectation: Some(sensor_setup::SensorExpectation::from_scene(&scene)),
         };
         let mut links = open_links(&plan).await?;
         let progress = progress::Progress::new(periods, &scenario.name);
@@ -179,7 +182,9 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         let can_distances = links.mirror.take_distances();
         let mirror_counters = links.mirror.counters();
         let node_events = links.mirror.events().to_vec();
-        // Closing the mirror link ends the emulator's run; the sensor stream then drains.
+        // Closing the mirror link (`C` on SLCAN) ends the emulator's run; the sensor stream
+        // then drains. A failed close (the node is gone) leaves nothing open.
+        let _ = links.mirror.close().await;
         drop(links.mirror);
         links
             .sensor
@@ -196,6 +201,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             mirror_counters,
             node_events,
             sensor: links.sensor.snapshot(),
+            sensor_setup: links.sensor_setup,
             emulator_summary,
         })
     })?;
@@ -233,6 +239,8 @@ pub struct LinkPlan {
     pub duration_s: f64,
     /// Record the links into this folder (`fsm.log`, `sensor.ild`).
     pub record_dir: Option<PathBuf>,
+    /// Configure the sensor for this before the run (`None`: leave it as it is).
+    pub sensor_expectation: Option<sensor_setup::SensorExpectation>,
 }
 
 /// The open links and the emulator process behind them.
@@ -246,6 +254,8 @@ pub struct OpenLinks {
     pub emulator: Option<EmulatorProcess>,
     /// The emulator's stdout lines after its ready line.
     pub emulator_lines: Option<mpsc::Receiver<String>>,
+    /// What the sensor set-up did, when the plan asked for one.
+    pub sensor_setup: Option<sensor_setup::SensorSetupReport>,
 }
 
 /// How long an emulator started here may take to open its links.
@@ -330,15 +340,18 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
     } else {
         (None, None)
     };
-    let mut fsm = match (fsm_pty, &plan.fsm) {
-        (Some(pair), _) => CanLink::open_pty(pair, None, Role::Host).await?,
-        (None, NodeLink::Uri(uri)) => CanLink::open(&uri.parse()?, Role::Host).await?,
-        (None, NodeLink::Pty) => unreachable!("a pty link has its pair"),
-    };
+    // The sensor is set up before the mirror's channel opens (which starts a real-time
+    // emulator's clock), and before recording starts.
     let mut sensor = match (sensor_pty, &plan.sensor) {
         (Some(pair), _) => SensorLink::on_pty(pair)?,
         (None, Some(NodeLink::Uri(uri))) if uri != "fsm" => SensorLink::open(&uri.parse()?)?,
         _ => SensorLink::Elsewhere,
+    };
+    let sensor_setup = sensor_setup::for_plan(&mut sensor, plan).await?;
+    let mut fsm = match (fsm_pty, &plan.fsm) {
+        (Some(pair), _) => CanLink::open_pty(pair, None, Role::Host).await?,
+        (None, NodeLink::Uri(uri)) => CanLink::open(&uri.parse()?, Role::Host).await?,
+        (None, NodeLink::Pty) => unreachable!("a pty link has its pair"),
     };
     let clock = (timing.mode == TimingMode::Lockstep).then(VirtualClock::default);
     if let Some(dir) = &plan.record_dir {
@@ -368,6 +381,7 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         sensor,
         emulator,
         emulator_lines,
+        sensor_setup,
     })
 }
 
