@@ -165,10 +165,8 @@ impl IldSettings {
             parameter: command.parameters(),
         };
         match command {
-            IldCommand::MeasRate(Some(khz)) => {
-                if (khz - self.measuring_rate_khz).abs() > 1e-6 {
-                    return Err(wrong(command));
-                }
+            IldCommand::MeasRate(Some(khz)) if (khz - self.measuring_rate_khz).abs() > 1e-6 => {
+                return Err(wrong(command));
             }
             IldCommand::Echo(Some(on)) => self.echo = *on,
             IldCommand::OutDistRs422(Some(on)) => self.distance_on = *on,
