@@ -22,6 +22,7 @@ use scanhil_controller::run::output::{self, RunData};
 use scanhil_controller::run::pairing::SensorClock;
 use scanhil_controller::run::scenario::{NodeLink, Scenario, TimingMode};
 use scanhil_controller::run::sensor_link::IldSampleDecoder;
+use scanhil_controller::run::sensor_setup::SensorSetupReport;
 use scanhil_controller::run::{EmulatedDevices, ScanEnd};
 use scanhil_emulator::scene::Part;
 use scanhil_emulator::sensor::IldSample;
@@ -179,6 +180,11 @@ pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProc
             sensor,
             emulator_summary: Some(node_summary),
             run_time_s: started.elapsed().as_secs_f64(),
+            sensor_setup: serves_sensor.then(|| SensorSetupReport::Skipped {
+                reason: "in process: the emulated sensor starts as the loop needs it; there is \
+                         no ASCII line to configure it over"
+                    .into(),
+            }),
         },
         sensor_clock,
         end,

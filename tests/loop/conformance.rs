@@ -26,9 +26,11 @@ fn the_emulator_passes_every_conformance_check() {
         "status_frames",
         "over_current_fault",
         "survives_malformed_frames",
+        "survives_garbage_slcan_lines",
         "sensor_values_decode",
         "sensor_counter_gapless",
         "sensor_values_in_range",
+        "sensor_survives_bad_commands",
         "link_timeout_fault",
     ] {
         let line = table
@@ -38,6 +40,14 @@ fn the_emulator_passes_every_conformance_check() {
         assert!(line.contains("PASS"), "{line}");
     }
     let xml = std::fs::read_to_string(&junit).expect("JUnit XML written");
-    assert!(xml.contains("tests=\"10\" failures=\"0\""), "{xml}");
-    assert_eq!(xml.matches("<testcase ").count(), 10, "{xml}");
+    assert!(xml.contains("tests=\"12\" failures=\"0\""), "{xml}");
+    assert_eq!(xml.matches("<testcase ").count(), 12, "{xml}");
+    // The new checks say what they sent and that the device still answered.
+    for (check, seen) in [
+        ("survives_garbage_slcan_lines", "still answering"),
+        ("sensor_survives_bad_commands", "GETINFO still answered"),
+    ] {
+        let line = table.lines().find(|line| line.contains(check)).unwrap();
+        assert!(line.contains(seen), "{line}");
+    }
 }

@@ -5,6 +5,8 @@
 
 mod util;
 
+// The host's SLCAN `C` ends the emulator's run, in lockstep and in real time.
+mod slcan_close;
 // The emulator's watchdog: a silent controller gets zero coil currents and a LinkTimeout fault.
 mod emulator_watchdog;
 // A whole scan over ptys: the Duplo stud's height, tracking error, recordings that decode.

@@ -47,6 +47,20 @@ fn distance_frames_and_the_ild_stream_give_the_same_scan() {
         );
     }
     assert_eq!(can["imaging"]["feature"], ild["imaging"]["feature"]);
+    // The ILD sensor was configured and read back before the run; on CAN there is no line.
+    let setup = &ild["sensor_setup"];
+    assert_eq!(setup["status"], "configured", "{setup}");
+    assert_eq!(setup["device_name"], "ILD2300", "{setup}");
+    assert_eq!(setup["measuring_rate_read_back_hz"], 20000.0, "{setup}");
+    assert_eq!(setup["range_span_mm"], 100.0, "{setup}");
+    let skipped = &can["sensor_setup"];
+    assert_eq!(skipped["status"], "skipped", "{skipped}");
+    assert!(
+        skipped["reason"]
+            .as_str()
+            .is_some_and(|r| r.contains("`fsm`")),
+        "{skipped}"
+    );
 
     let recording = decode_candump(&on_can.path().join("fsm.log"));
     let text = std::fs::read_to_string(on_can.path().join("fsm.log")).expect("fsm.log");

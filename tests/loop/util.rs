@@ -380,6 +380,14 @@ impl SlcanHost {
             .expect("writing to the pty");
     }
 
+    /// Writes one raw SLCAN line (a command such as `C`), adding the CR.
+    pub fn write_line(&mut self, line: &str) {
+        use std::io::Write;
+        self.file
+            .write_all(format!("{line}\r").as_bytes())
+            .expect("writing to the pty");
+    }
+
     /// The next message within `timeout`.
     pub fn recv(&self, timeout: std::time::Duration) -> Option<Message> {
         self.frames.recv_timeout(timeout).ok()

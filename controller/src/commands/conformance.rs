@@ -56,7 +56,6 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let plan = LinkPlan {
         fsm,
         sensor,
-        sensor_rate_hz: None,
         spawn_emulator: false,
         emulator: args.emulator,
         scene,
@@ -69,6 +68,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         period_s: 1.0 / args.rate_hz,
         duration_s: 0.0,
         record_dir: None,
+        sensor_expectation: None,
     };
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -78,6 +78,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         let mut links = open_links(&plan).await?;
         let sensor = plan.sensor.is_some().then_some(&mut links.sensor);
         let results = run_checks(&mut links.mirror, sensor).await;
+        // `C` on SLCAN, so a real adapter is not left open; a node already gone is fine.
+        let _ = links.mirror.close().await;
         drop(links.mirror);
         if let Some(process) = links.emulator {
             finish_emulator(process, links.emulator_lines).await?;

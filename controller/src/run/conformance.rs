@@ -8,8 +8,10 @@
 //! - `status_frames`: Status frames arrive with a valid state.
 //! - `over_current_fault`: a coil command beyond any amplifier's limit raises an OverCurrent
 //!   fault frame.
-//! - `survives_malformed_frames`: malformed loop frames (short payloads) and, on SLCAN,
-//!   garbage lines leave the node answering.
+//! - `survives_malformed_frames`: malformed loop frames (short payloads) leave the node
+//!   answering.
+//! - `survives_garbage_slcan_lines` (SLCAN links only): garbage lines (unknown commands,
+//!   truncated frames, bytes outside ASCII, an overlong line) leave the node answering.
 //! - `link_timeout_fault`: silence for the watchdog's periods raises a LinkTimeout fault
 //!   (run last: the node leaves the session).
 //!
@@ -17,16 +19,42 @@
 //! - `sensor_values_decode`: the stream decodes with no resynchronisation.
 //! - `sensor_counter_gapless`: measured-value counters without gaps.
 //! - `sensor_values_in_range`: every value a distance or a known error code.
+//! - `sensor_survives_bad_commands` (ILD line only): unknown commands, wrong parameters and an
+//!   overlong line are each refused with an `Exx` error, and `GETINFO` is still answered with
+//!   a measuring range. The stream is stopped (`OUTPUT NONE`) around the check and restarted
+//!   after it.
 
 use std::fmt::Write as _;
 use std::time::{Duration, Instant};
 
+use scanhil_protocol::ild::command::{IldCommand, IldInfo};
 use scanhil_protocol::ild::{IldError, IldValue};
+use scanhil_protocol::link::{IldLink, LinkError};
 use scanhil_protocol::message::FaultKind;
 use scanhil_protocol::plant_units::{ActuatorPair, FULL_RANGE_DEG};
+use scanhil_protocol::slcan::SlcanMessage;
 
 use super::mirror_link::MirrorLink;
 use super::sensor_link::SensorLink;
+use super::sensor_setup::{COMMAND_TIMEOUT, stop_output};
+
+/// Garbage SLCAN lines for `survives_garbage_slcan_lines`, with what each is.
+const GARBAGE_SLCAN_LINES: [(&[u8], &str); 5] = [
+    (b"xyz", "unknown command `xyz`"),
+    (b"t12", "truncated frame `t12`"),
+    (b"t1008010203", "frame shorter than its DLC"),
+    (b"\xff\xfe\x00\x80", "bytes outside ASCII"),
+    (&[b'A'; 200], "a 200-byte line"),
+];
+/// Bad ASCII command lines for `sensor_survives_bad_commands`, with what each is.
+const BAD_ILD_COMMANDS: [(&str, &str); 4] = [
+    ("FROB 1", "unknown command"),
+    ("MEASRATE 7", "a measuring rate the sensor does not have"),
+    ("OUTPUT SIDEWAYS", "an unknown OUTPUT word"),
+    ("GETINFO EXTRA", "a parameter GETINFO does not take"),
+];
+/// Length of the overlong command line (longer than a device's line buffer).
+const OVERLONG_COMMAND_LEN: usize = 300;
 
 /// Exchanges used by the timing and range checks.
 const EXCHANGES: u64 = 2_500;
@@ -184,10 +212,36 @@ pub async fn run_checks(
         detail: survived.unwrap_or_else(|e| e),
         time_s: t0.elapsed().as_secs_f64(),
     });
+    // The malformed check's exchange used period k.
+    if results.last().is_some_and(|r| r.passed) {
+        k += 1;
+    }
+    // Garbage SLCAN lines (SLCAN only).
+    let t0 = Instant::now();
+    if let Some(survived) = survive_garbage_lines(mirror, k).await {
+        results.push(CheckResult {
+            name: "survives_garbage_slcan_lines",
+            node: "fsm",
+            passed: survived.is_ok(),
+            detail: survived.unwrap_or_else(|e| e),
+            time_s: t0.elapsed().as_secs_f64(),
+        });
+    }
     // Sensor stream.
     if let Some(sensor) = sensor {
         let _ = sensor.drain(Duration::from_millis(100)).await;
         results.extend(sensor_checks(sensor));
+        if let Some(link) = sensor.ild_link_mut() {
+            let t0 = Instant::now();
+            let survived = survive_bad_commands(link).await;
+            results.push(CheckResult {
+                name: "sensor_survives_bad_commands",
+                node: "sensor",
+                passed: survived.is_ok(),
+                detail: survived.unwrap_or_else(|e| e),
+                time_s: t0.elapsed().as_secs_f64(),
+            });
+        }
     }
     // Link timeout (last).
     let t0 = Instant::now();
@@ -200,6 +254,69 @@ pub async fn run_checks(
         time_s: t0.elapsed().as_secs_f64(),
     });
     results
+}
+
+/// Sends the garbage lines, then one lockstep exchange (period `k`) that must be answered.
+/// `None` on a link without SLCAN lines (SocketCAN).
+async fn survive_garbage_lines(mirror: &mut MirrorLink, k: u64) -> Option<Result<String, String>> {
+    let mut answers = Vec::new();
+    for (line, what) in GARBAGE_SLCAN_LINES {
+        let answer = match mirror.can_link_mut().send_raw_line(line).await {
+            Err(LinkError::Unsupported { .. }) => return None,
+            Err(error) => return Some(Err(format!("sending {what}: {error}"))),
+            Ok(Some(SlcanMessage::Nack)) => "BEL".to_owned(),
+            Ok(Some(other)) => format!("{other:?}"),
+            Ok(None) => "no answer".to_owned(),
+        };
+        answers.push(format!("{what}: {answer}"));
+    }
+    let sent = answers.join(", ");
+    Some(
+        match mirror.exchange_lockstep(k, ActuatorPair::default()).await {
+            Ok(_) => Ok(format!("{sent}; still answering")),
+            Err(error) => Err(format!("{sent}; then the next exchange failed: {error}")),
+        },
+    )
+}
+
+/// Sends the bad command lines (each must be refused with an `Exx` error), then `GETINFO`
+/// (must be answered with a measuring range), with the sensor's output stopped meanwhile.
+async fn survive_bad_commands(link: &mut IldLink) -> Result<String, String> {
+    stop_output(link)
+        .await
+        .map_err(|e| format!("stopping the output first: {e}"))?;
+    let overlong = "X".repeat(OVERLONG_COMMAND_LEN);
+    let lines = BAD_ILD_COMMANDS
+        .iter()
+        .map(|&(line, what)| (line.to_owned(), what.to_owned()))
+        .chain([(overlong, format!("a {OVERLONG_COMMAND_LEN}-byte line"))]);
+    let mut refusals = Vec::new();
+    for (line, what) in lines {
+        let reply = link
+            .send_raw_command_line(&line, COMMAND_TIMEOUT)
+            .await
+            .map_err(|e| format!("{what}: {e}"))?;
+        match reply.error {
+            Some(error) => refusals.push(format!("{what}: E{:02}", error.code)),
+            None => return Err(format!("{what} was not refused (reply {:?})", reply.lines)),
+        }
+    }
+    let refusals = refusals.join(", ");
+    let info = link
+        .command(&IldCommand::GetInfo, COMMAND_TIMEOUT)
+        .await
+        .map_err(|e| format!("{refusals}; then GETINFO: {e}"))?;
+    let info = IldInfo::from_reply(&info).map_err(|e| format!("{refusals}; then {e}"))?;
+    let restart = IldCommand::Output(Some("RS422".to_owned()));
+    match link.command(&restart, COMMAND_TIMEOUT).await {
+        Ok(reply) if reply.is_ok() => {}
+        Ok(reply) => return Err(format!("restarting the output: refused {:?}", reply.error)),
+        Err(error) => return Err(format!("restarting the output: {error}")),
+    }
+    Ok(format!(
+        "{refusals}; GETINFO still answered (measuring range {:.2} mm)",
+        info.measuring_range_mm
+    ))
 }
 
 fn fault_count(mirror: &MirrorLink, kind: FaultKind) -> usize {

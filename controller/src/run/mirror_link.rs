@@ -145,6 +145,20 @@ impl MirrorLink {
         let _ = self.send_command(k, ActuatorPair::default()).await;
     }
 
+    /// At the end of a session (normal end or error path): closes the link's SLCAN channel
+    /// (`C`), waiting a bounded time for the adapter's answer; see `CanLink::close`.
+    ///
+    /// # Errors
+    /// The adapter's silence or a line error (a peer that is gone).
+    pub async fn close(&mut self) -> Result<(), LinkError> {
+        self.port.close().await
+    }
+
+    /// The CAN link itself, for conformance checks that go below the loop's messages.
+    pub fn can_link_mut(&mut self) -> &mut CanLink {
+        &mut self.port
+    }
+
     /// Status and fault frames received so far.
     #[must_use]
     pub fn events(&self) -> &[NodeEvent] {

@@ -11,6 +11,7 @@
 //! - [`mirror_link`]: the mirror node seen from the controller: exchanges, status, faults,
 //!   watchdog.
 //! - [`sensor_link`]: the ILD stream seen from the controller, with its raw recording.
+//! - [`sensor_setup`]: configuring and reading back the sensor before a scan.
 //! - [`bus_load`]: refusing a loop that cannot fit on a link's bit rate.
 //! - [`lockstep`], [`realtime`]: the two loops.
 //! - [`pairing`]: distances with angles by the sensor's own time.
@@ -34,6 +35,7 @@ pub mod progress;
 pub mod realtime;
 pub mod scenario;
 pub mod sensor_link;
+pub mod sensor_setup;
 pub mod tracking;
 
 use std::io::BufRead;
@@ -140,7 +142,6 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         let plan = LinkPlan {
             fsm: scenario.links.fsm.clone(),
             sensor: rig.sensor.map(|_| scenario.links.sensor.clone()),
-            sensor_rate_hz,
             spawn_emulator: scenario.links.spawn_emulator,
             emulator: options.emulator.clone(),
             scene: scenario.scene.clone().unwrap_or_default(),
@@ -149,6 +150,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             period_s,
             duration_s: scenario.duration_s,
             record_dir: Some(out_dir.clone()),
+            sensor_expectation: rig.sensor,
         };
         let mut links = open_links(&plan).await?;
         let progress = progress::Progress::new(periods, &scenario.name);
@@ -180,7 +182,9 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         let can_distances = links.mirror.take_distances();
         let mirror_counters = links.mirror.counters();
         let node_events = links.mirror.events().to_vec();
-        // Closing the mirror link ends the emulator's run; the sensor stream then drains.
+        // Closing the mirror link (`C` on SLCAN) ends the emulator's run; the sensor stream
+        // then drains. A failed close (the node is gone) leaves nothing open.
+        let _ = links.mirror.close().await;
         drop(links.mirror);
         links
             .sensor
@@ -197,6 +201,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             mirror_counters,
             node_events,
             sensor: links.sensor.snapshot(),
+            sensor_setup: links.sensor_setup,
             emulator_summary,
             run_time_s: started.elapsed().as_secs_f64(),
         })
@@ -213,9 +218,6 @@ pub struct LinkPlan {
     pub fsm: NodeLink,
     /// The sensor's link; `None` when the run needs no sensor.
     pub sensor: Option<NodeLink>,
-    /// The sensor's measuring rate the host expects, Hz: an emulator started here must serve
-    /// a sensor at this rate (`None`: not checked).
-    pub sensor_rate_hz: Option<f64>,
     /// Start `scanhil-emulator serve` (for pty links always; for URIs when asked).
     pub spawn_emulator: bool,
     /// The emulator binary, if not found the usual way.
@@ -232,6 +234,9 @@ pub struct LinkPlan {
     pub duration_s: f64,
     /// Record the links into this folder (`fsm.log`, `sensor.ild`).
     pub record_dir: Option<PathBuf>,
+    /// The rig's sensor: configured and read back before the run, and an emulator started here
+    /// must serve it at its rate (`None`: left as it is, not checked).
+    pub sensor_expectation: Option<crate::rig::RigSensor>,
 }
 
 /// The open links and the emulator process behind them.
@@ -245,6 +250,8 @@ pub struct OpenLinks {
     pub emulator: Option<EmulatorProcess>,
     /// The emulator's stdout lines after its ready line.
     pub emulator_lines: Option<mpsc::Receiver<String>>,
+    /// What the sensor set-up did, when the plan asked for one.
+    pub sensor_setup: Option<sensor_setup::SensorSetupReport>,
 }
 
 /// How long an emulator started here may take to open its links.
@@ -331,21 +338,24 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         EmulatedDevices::from_ready_line(&ready).check(
             &plan.scene,
             plan.period_s,
-            plan.sensor_rate_hz,
+            plan.sensor_expectation.map(|s| s.measuring_rate_hz),
         )?;
         (Some(process), Some(lines))
     } else {
         (None, None)
     };
-    let mut fsm = match (fsm_pty, &plan.fsm) {
-        (Some(pair), _) => CanLink::open_pty(pair, None, Role::Host).await?,
-        (None, NodeLink::Uri(uri)) => CanLink::open(&uri.parse()?, Role::Host).await?,
-        (None, NodeLink::Pty) => unreachable!("a pty link has its pair"),
-    };
+    // The sensor is set up before the mirror's channel opens (which starts a real-time
+    // emulator's clock), and before recording starts.
     let mut sensor = match (sensor_pty, &plan.sensor) {
         (Some(pair), _) => SensorLink::on_pty(pair)?,
         (None, Some(NodeLink::Uri(uri))) if uri != "fsm" => SensorLink::open(&uri.parse()?)?,
         _ => SensorLink::Elsewhere,
+    };
+    let sensor_setup = sensor_setup::for_plan(&mut sensor, plan).await?;
+    let mut fsm = match (fsm_pty, &plan.fsm) {
+        (Some(pair), _) => CanLink::open_pty(pair, None, Role::Host).await?,
+        (None, NodeLink::Uri(uri)) => CanLink::open(&uri.parse()?, Role::Host).await?,
+        (None, NodeLink::Pty) => unreachable!("a pty link has its pair"),
     };
     let clock = (timing.mode == TimingMode::Lockstep).then(VirtualClock::default);
     if let Some(dir) = &plan.record_dir {
@@ -375,6 +385,7 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         sensor,
         emulator,
         emulator_lines,
+        sensor_setup,
     })
 }
 

@@ -51,6 +51,8 @@ pub struct RunData {
     pub node_events: Vec<NodeEvent>,
     /// The ILD stream's samples and counters.
     pub sensor: (Vec<CountedSample>, SensorCounters),
+    /// What the sensor set-up before the run did.
+    pub sensor_setup: Option<super::sensor_setup::SensorSetupReport>,
     /// The emulator's exit status and summary line, when it was started by this run.
     pub emulator_summary: Option<serde_json::Value>,
     /// Wall-clock time from opening the links (or starting the in-process loop) to the end
@@ -193,6 +195,7 @@ pub fn write(
             "emulator": run.emulator_summary.as_ref().map(|e| e["summary"]["timing"].clone()),
         },
         "tracking_error": record.tracking.summary(),
+        "sensor_setup": run.sensor_setup,
         "trajectory": figures,
         "samples": {
             "sensor_samples": counted.len(),

@@ -53,7 +53,6 @@ impl LinkedPlant {
         let plan = LinkPlan {
             fsm: fsm.clone(),
             sensor: None,
-            sensor_rate_hz: None,
             spawn_emulator: false,
             emulator: emulator.map(Path::to_owned),
             scene,
@@ -66,6 +65,7 @@ impl LinkedPlant {
             period_s,
             duration_s: 0.0,
             record_dir: None,
+            sensor_expectation: None,
         };
         let links = runtime.block_on(open_links(&plan))?;
         Ok(LinkedPlant {
@@ -75,6 +75,15 @@ impl LinkedPlant {
             next_period: 0,
             _emulator: links.emulator,
         })
+    }
+}
+
+/// Closes the mirror's link explicitly (`C` on SLCAN, bounded wait) however identification
+/// ends: normally, on an error, or unwinding.
+impl Drop for LinkedPlant {
+    fn drop(&mut self) {
+        let mirror = &mut self.mirror;
+        let _ = self.runtime.block_on(mirror.close());
     }
 }
 

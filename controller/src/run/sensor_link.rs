@@ -105,6 +105,14 @@ impl SensorLink {
         }))
     }
 
+    /// The host end of the ILD line, for commands (`None`: the sensor is elsewhere).
+    pub fn ild_link_mut(&mut self) -> Option<&mut IldLink> {
+        match self {
+            SensorLink::Elsewhere => None,
+            SensorLink::Ild(stream) => Some(&mut stream.link),
+        }
+    }
+
     /// Records every received byte into `path` (a raw capture `scanhil decode --format ild`
     /// reads).
     ///

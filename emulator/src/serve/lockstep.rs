@@ -13,14 +13,16 @@
 use std::time::Duration;
 
 use scanhil_protocol::can::CanFrame;
-use scanhil_protocol::link::{LinkError, Watchdog};
+use scanhil_protocol::link::Watchdog;
 
 use super::lockstep_node::{LockstepNode, NodeReply, NodeSend};
 use super::mirror_node::MirrorNode;
-use super::{LoopReport, ServeConfig, ServeLinks, ServeOutcome};
+use super::{LoopReport, RunEnd, ServeConfig, ServeLinks, ServeOutcome};
 
-/// Runs the lockstep loop until the controller hangs up or the watchdog fires. What the node
-/// answers is [`LockstepNode`]'s; this loop only receives, sends and keeps the watchdog.
+/// Runs the lockstep loop until the controller hangs up, closes the SLCAN channel, ends the run
+/// with its Status frame, or the watchdog fires. What the node answers is [`LockstepNode`]'s;
+/// this loop only receives, sends and keeps the watchdog. While waiting for frames, the sensor
+/// answers the host's ILD commands.
 ///
 /// # Errors
 /// A link error other than a hang-up, or a plant error (non-finite command).
@@ -33,15 +35,11 @@ pub async fn run(
     let mut watchdog: Option<Watchdog> = None;
     let mut node = LockstepNode::new(node, config.heartbeat_hz);
     loop {
-        let received = match &watchdog {
-            Some(dog) => {
-                let remaining = dog.remaining();
-                tokio::select! {
-                    frame = links.fsm.recv() => Some(frame),
-                    () = tokio::time::sleep(remaining) => None,
-                }
-            }
-            None => Some(links.fsm.recv().await),
+        let silence = watchdog.as_ref().map(Watchdog::remaining);
+        let received = tokio::select! {
+            frame = links.fsm.recv() => Some(frame),
+            () = sleep_or_never(silence) => None,
+            error = links.sensor.answer_commands() => return Err(error),
         };
         let frame = match received {
             None => {
@@ -51,6 +49,7 @@ pub async fn run(
                 linger(links).await?;
                 return Ok(LoopReport {
                     outcome: ServeOutcome::LinkTimeout,
+                    ended_by: RunEnd::Watchdog,
                     timing: serde_json::Value::Null,
                     error: Some(format!(
                         "link timeout: no frame from the controller for {} periods of {:?}",
@@ -58,14 +57,17 @@ pub async fn run(
                     )),
                 });
             }
-            Some(Err(LinkError::HangUp { .. })) => {
-                return Ok(LoopReport {
-                    outcome: ServeOutcome::Finished,
-                    timing: serde_json::Value::Null,
-                    error: None,
-                });
+            Some(Err(err)) => {
+                return match RunEnd::from_link_error(&err) {
+                    Some(ended_by) => Ok(LoopReport {
+                        outcome: ServeOutcome::Finished,
+                        ended_by,
+                        timing: serde_json::Value::Null,
+                        error: None,
+                    }),
+                    None => Err(err.into()),
+                };
             }
-            Some(Err(err)) => return Err(err.into()),
             Some(Ok(frame)) => frame,
         };
         match node.on_frame(&frame)? {
@@ -102,16 +104,26 @@ async fn end_of_run(ready: &CanFrame, links: &mut ServeLinks) -> anyhow::Result<
     }
     Ok(LoopReport {
         outcome: ServeOutcome::Finished,
+        ended_by: RunEnd::ControllerStatus,
         timing: serde_json::Value::Null,
         error: None,
     })
+}
+
+/// Sleeps for `duration`, or for ever when there is none (the watchdog is not armed yet).
+async fn sleep_or_never(duration: Option<Duration>) {
+    match duration {
+        Some(duration) => tokio::time::sleep(duration).await,
+        None => std::future::pending().await,
+    }
 }
 
 /// How long the node keeps the link open after its last frames, so the host can read them
 /// (closing a pty drops what the other end has not read yet).
 pub const LINGER: Duration = Duration::from_secs(2);
 
-/// Keeps the link open, ignoring what arrives, until the host hangs up or [`LINGER`] passes.
+/// Keeps the link open, ignoring what arrives, until the host hangs up, closes the channel, or
+/// [`LINGER`] passes.
 ///
 /// # Errors
 /// A link error other than the hang-up.
@@ -119,7 +131,8 @@ pub async fn linger(links: &mut ServeLinks) -> anyhow::Result<()> {
     let deadline = tokio::time::Instant::now() + LINGER;
     loop {
         match tokio::time::timeout_at(deadline, links.fsm.recv()).await {
-            Err(_) | Ok(Err(LinkError::HangUp { .. })) => return Ok(()),
+            Err(_) => return Ok(()),
+            Ok(Err(error)) if RunEnd::from_link_error(&error).is_some() => return Ok(()),
             Ok(Err(error)) => return Err(error.into()),
             Ok(Ok(_)) => {}
         }

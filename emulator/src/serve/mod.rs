@@ -15,6 +15,7 @@ pub mod lockstep;
 pub mod lockstep_node;
 pub mod mirror_node;
 pub mod realtime;
+pub mod sensor_commands;
 pub mod sensor_port;
 
 use std::io::Write;
@@ -22,7 +23,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
 use scanhil_protocol::link::role::Role;
-use scanhil_protocol::link::{CanLink, LinkUri, PtyPair};
+use scanhil_protocol::link::{CanLink, LinkError, LinkUri, PtyPair};
 
 use crate::plant::Plant;
 use crate::scene::Scene;
@@ -75,6 +76,35 @@ pub enum ServeOutcome {
     LinkTimeout,
 }
 
+/// What ended a serve run (the summary's `ended_by`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RunEnd {
+    /// The host closed the SLCAN channel (`C`): the end of its session, as a hang-up.
+    HostClosedChannel,
+    /// The host closed the line (or a bus link went away).
+    HangUp,
+    /// Lockstep: the controller's Status frame ended the run.
+    ControllerStatus,
+    /// Real time: the requested duration ran out.
+    Duration,
+    /// The watchdog fired.
+    Watchdog,
+}
+
+impl RunEnd {
+    /// How a link error ends the run: `Some` for the host's hang-up or its closing of the
+    /// channel, `None` for a real failure.
+    #[must_use]
+    pub fn from_link_error(error: &LinkError) -> Option<RunEnd> {
+        match error {
+            LinkError::HangUp { .. } => Some(RunEnd::HangUp),
+            LinkError::ChannelClosed { .. } => Some(RunEnd::HostClosedChannel),
+            _ => None,
+        }
+    }
+}
+
 /// The open links of a serve run.
 #[derive(Debug)]
 pub struct ServeLinks {
@@ -122,6 +152,7 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
         let summary = serde_json::json!({
             "event": "summary",
             "outcome": report.outcome,
+            "ended_by": report.ended_by,
             "node": node.counters(),
             "final_state": node.state(),
             "held_coil_currents_a": node.held_command_a(),
@@ -155,18 +186,25 @@ pub fn load_plant(path: &Path, seed: Option<u64>) -> anyhow::Result<(Scene, Plan
 pub struct LoopReport {
     /// How it ended.
     pub outcome: ServeOutcome,
+    /// What ended it.
+    pub ended_by: RunEnd,
     /// Real time: the emulator's period statistics (JSON), lockstep: null.
     pub timing: serde_json::Value,
     /// A link or protocol error that ended the run, if any.
     pub error: Option<String>,
 }
 
+/// Opens the mirror node's link; on SLCAN the host's `C` ends the run
+/// ([`RunEnd::HostClosedChannel`]).
 async fn open_fsm(uri: &str) -> anyhow::Result<CanLink> {
-    if uri == "slcan:pty" {
-        return Ok(CanLink::open_pty(PtyPair::open()?, None, Role::Device).await?);
-    }
-    let parsed: LinkUri = uri.parse()?;
-    Ok(CanLink::open(&parsed, Role::Device).await?)
+    let mut link = if uri == "slcan:pty" {
+        CanLink::open_pty(PtyPair::open()?, None, Role::Device).await?
+    } else {
+        let parsed: LinkUri = uri.parse()?;
+        CanLink::open(&parsed, Role::Device).await?
+    };
+    link.end_run_on_close();
+    Ok(link)
 }
 
 fn link_summary(link: &CanLink) -> serde_json::Value {

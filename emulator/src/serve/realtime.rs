@@ -12,20 +12,21 @@
 
 use std::time::{Duration, Instant};
 
-use scanhil_protocol::link::LinkError;
 use scanhil_protocol::loop_timing::PeriodRecorder;
 use scanhil_protocol::message::{Message, MessageError, NodeState};
 
 use super::lockstep::linger;
 use super::lockstep_node::{angle_frame, fault_frame, periods_per_heartbeat, status_frame};
 use super::mirror_node::{MirrorNode, NodeOutput};
-use super::{LoopReport, ServeConfig, ServeLinks, ServeOutcome};
+use super::{LoopReport, RunEnd, ServeConfig, ServeLinks, ServeOutcome};
 
 /// How long one period's frames may take to go out before they are dropped.
 const SEND_ALLOWANCE: Duration = Duration::from_millis(2);
 
-/// Runs the real-time loop until the duration ends, the controller hangs up, or the watchdog
-/// fires (no command for `watchdog_periods` periods once the first one arrived).
+/// Runs the real-time loop until the duration ends, the controller hangs up or closes the SLCAN
+/// channel, or the watchdog fires (no command for `watchdog_periods` periods once the first one
+/// arrived). Before the clock starts the sensor answers the host's ILD commands as they come;
+/// during the run, at each period's samples.
 ///
 /// # Errors
 /// A link error other than a hang-up, or a plant error.
@@ -45,21 +46,26 @@ pub async fn run(
     let mut dropped_periods = 0u64;
     // The clock starts when the host has opened the channel (SLCAN `O`; SocketCAN is open).
     while !links.fsm.channel_open() {
-        match links.fsm.recv_timeout(Duration::from_millis(10)).await {
-            Err(LinkError::HangUp { .. }) => {
-                return Ok(LoopReport {
+        let received = tokio::select! {
+            received = links.fsm.recv_timeout(Duration::from_millis(10)) => received,
+            error = links.sensor.answer_commands() => return Err(error),
+        };
+        if let Err(error) = received {
+            return match RunEnd::from_link_error(&error) {
+                Some(ended_by) => Ok(LoopReport {
                     outcome: ServeOutcome::Finished,
+                    ended_by,
                     timing: serde_json::Value::Null,
                     error: None,
-                });
-            }
-            Err(error) => return Err(error.into()),
-            Ok(_) => {}
+                }),
+                None => Err(error.into()),
+            };
         }
     }
     let start = Instant::now();
     let mut last_tick: Option<Instant> = None;
     let mut outcome = ServeOutcome::Finished;
+    let mut ended_by = RunEnd::Duration;
     let mut error = None;
     'ticks: loop {
         let k = node.next_period();
@@ -79,8 +85,13 @@ pub async fn run(
             };
             match received {
                 None => {}
-                Some(Err(LinkError::HangUp { .. })) => break 'ticks,
-                Some(Err(err)) => return Err(err.into()),
+                Some(Err(err)) => match RunEnd::from_link_error(&err) {
+                    Some(end) => {
+                        ended_by = end;
+                        break 'ticks;
+                    }
+                    None => return Err(err.into()),
+                },
                 Some(Ok(frame)) => match Message::decode(&frame) {
                     Ok(Message::CoilCommand(command)) => {
                         last_command_period = Some(k);
@@ -106,6 +117,7 @@ pub async fn run(
             links.fsm.send(&status).await?;
             linger(links).await?;
             outcome = ServeOutcome::LinkTimeout;
+            ended_by = RunEnd::Watchdog;
             error = Some(format!(
                 "link timeout: no coil command for {} periods",
                 config.watchdog_periods
@@ -145,6 +157,7 @@ pub async fn run(
         stats.is_some_and(|s| s.overruns == 0) && stale <= 1 && dropped_periods == 0;
     Ok(LoopReport {
         outcome,
+        ended_by,
         timing: serde_json::json!({
             "period_jitter": stats,
             "stale_command_periods": stale,

@@ -6,11 +6,20 @@
 //! The summary line declares the sensor's clock (measuring rate, and the loop time its counter
 //! 0 stands for) so the host can place each distance in time; for a real sensor the host
 //! estimates it instead.
+//!
+//! On the ILD line the port also answers the host's ASCII commands
+//! ([`super::sensor_commands`]): before the run (the timing loops wait on
+//! [`SensorPort::answer_commands`] beside the mirror's link) and between streamed cycles
+//! ([`SensorPort::emit`] first answers what has arrived). Answering never blocks the mirror
+//! loop: replies are written as far as the line takes them now, the rest goes out with the
+//! next cycle. What the commands set (output on/off, the counter, the laser) shapes the cycles
+//! sent. Distance frames on CAN have no command line.
 
-use scanhil_protocol::link::ild::IldLink;
+use scanhil_protocol::link::ild::{IldLink, IldRequest};
 use scanhil_protocol::link::role::Role;
-use scanhil_protocol::link::{CanLink, LinkUri, PtyPair};
+use scanhil_protocol::link::{CanLink, LinkError, LinkUri, PtyPair};
 
+use super::sensor_commands::IldSettings;
 use crate::scene::Scene;
 use crate::sensor::IldSample;
 use scanhil_protocol::message::{Distance, Message, U24_MAX};
@@ -20,10 +29,41 @@ use scanhil_protocol::message::{Distance, Message, U24_MAX};
 pub enum SensorPort {
     /// The scene has no sensor, or no sensor link was asked for: samples are dropped.
     Off,
-    /// The ILD RS422 stream (device end).
-    Ild(Box<IldLink>, SensorClockTrack),
+    /// The ILD RS422 stream and command line (device end).
+    Ild(Box<IldPort>),
     /// Distance frames on the mirror's CAN link.
     Can(SensorClockTrack),
+}
+
+/// The ILD line's device end with the emulated sensor's settings.
+#[derive(Debug)]
+pub struct IldPort {
+    link: IldLink,
+    clock: SensorClockTrack,
+    settings: IldSettings,
+    commands: CommandCounts,
+    /// The host hung up the line: no more commands to read (a cycle sent then still fails).
+    host_gone: bool,
+}
+
+/// The host's commands the sensor answered, for the summary line.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct CommandCounts {
+    /// Command lines answered (refusals included).
+    pub commands_answered: u64,
+    /// Of those, refused with an `Exx` error.
+    pub commands_refused: u64,
+}
+
+/// The sensor's part of the summary line.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct SensorSummary {
+    /// Samples sent and the sensor's clock.
+    #[serde(flatten)]
+    pub clock: SensorClockTrack,
+    /// Commands answered (ILD line only).
+    #[serde(flatten)]
+    pub commands: CommandCounts,
 }
 
 /// What the sensor has sent and when its counter started.
@@ -55,44 +95,112 @@ impl SensorPort {
                 scene.name
             );
         }
+        let config = scene.sensor.unwrap_or_default();
         let clock = SensorClockTrack {
             samples: 0,
             counter_zero_s: None,
-            measuring_rate_hz: scene.sensor.unwrap_or_default().measuring_rate_hz,
+            measuring_rate_hz: config.measuring_rate_hz,
         };
         if uri == "fsm" {
             return Ok((SensorPort::Can(clock), "fsm".into()));
         }
-        if uri == "ild:pty" {
-            let link = IldLink::open_pty(PtyPair::open()?, Role::Device)?;
-            let name = link.name().to_owned();
-            return Ok((SensorPort::Ild(Box::new(link), clock), name));
-        }
-        match uri.parse::<LinkUri>()? {
-            parsed @ LinkUri::Ild { .. } => {
-                let link = IldLink::open(&parsed, Role::Device)?;
-                let name = link.name().to_owned();
-                Ok((SensorPort::Ild(Box::new(link), clock), name))
+        let settings = IldSettings::new(config.measuring_rate_hz, config.range.span_mm);
+        let link = if uri == "ild:pty" {
+            IldLink::open_pty(PtyPair::open()?, Role::Device)?
+        } else {
+            match uri.parse::<LinkUri>()? {
+                parsed @ LinkUri::Ild { .. } => IldLink::open(&parsed, Role::Device)?,
+                other => anyhow::bail!(
+                    "--sensor {other}: the sensor speaks the ILD stream (`ild:PATH`) or Distance \
+                     frames on the mirror's link (`fsm`)"
+                ),
             }
-            other => anyhow::bail!(
-                "--sensor {other}: the sensor speaks the ILD stream (`ild:PATH`) or Distance \
-                 frames on the mirror's link (`fsm`)"
-            ),
-        }
+        };
+        let name = link.name().to_owned();
+        let port = IldPort {
+            link,
+            clock,
+            settings,
+            commands: CommandCounts::default(),
+            host_gone: false,
+        };
+        Ok((SensorPort::Ild(Box::new(port)), name))
     }
 
-    /// Sends the samples of one period, in order.
+    /// Waits for the host's command lines and answers each; returns only on a link error
+    /// other than the host's hang-up (after which, and on a port without a command line, it
+    /// waits for ever). Cancel-safe: meant for a `select!` beside the mirror's link while the
+    /// loop waits.
+    pub async fn answer_commands(&mut self) -> anyhow::Error {
+        if let SensorPort::Ild(port) = self {
+            while !port.host_gone {
+                let answered = match port.link.recv_command().await {
+                    Ok(request) => port.answer(&request),
+                    Err(error) => Err(error),
+                };
+                match answered {
+                    Ok(()) => {}
+                    Err(LinkError::HangUp { .. }) => port.host_gone = true,
+                    Err(error) => return error.into(),
+                }
+            }
+        }
+        std::future::pending().await
+    }
+
+    /// Answers the command lines that have arrived, without waiting.
+    ///
+    /// # Errors
+    /// Link errors other than the host's hang-up.
+    pub fn poll_commands(&mut self) -> anyhow::Result<()> {
+        let SensorPort::Ild(port) = self else {
+            return Ok(());
+        };
+        while !port.host_gone {
+            let answered = match port.link.try_recv_command() {
+                Ok(Some(request)) => port.answer(&request),
+                Ok(None) => return Ok(()),
+                Err(error) => Err(error),
+            };
+            match answered {
+                Ok(()) => {}
+                Err(LinkError::HangUp { .. }) => port.host_gone = true,
+                Err(error) => return Err(error.into()),
+            }
+        }
+        Ok(())
+    }
+}
+
+impl IldPort {
+    /// Carries out one command line and sends its reply without waiting.
+    fn answer(&mut self, request: &IldRequest) -> Result<(), LinkError> {
+        let reply = self.settings.answer(request);
+        self.commands.commands_answered += 1;
+        if !reply.is_ok() {
+            self.commands.commands_refused += 1;
+        }
+        self.link.reply_now(&reply)
+    }
+}
+
+impl SensorPort {
+    /// Sends the samples of one period, in order. On the ILD line, first answers the command
+    /// lines that have arrived, then sends each sample's output cycle as the settings make it
+    /// (none while the output is off).
     ///
     /// # Errors
     /// Link errors.
     pub async fn emit(&mut self, samples: &[IldSample], fsm: &mut CanLink) -> anyhow::Result<()> {
+        self.poll_commands()?;
         match self {
             SensorPort::Off => {}
-            SensorPort::Ild(link, clock) => {
+            SensorPort::Ild(port) => {
                 for sample in samples {
-                    clock.count(sample);
-                    link.send_cycle(&[sample.value.raw(), sample.counter])
-                        .await?;
+                    if let Some(values) = port.settings.cycle(sample) {
+                        port.clock.count(sample);
+                        port.link.send_cycle(&values).await?;
+                    }
                 }
             }
             SensorPort::Can(clock) => {
@@ -113,12 +221,19 @@ impl SensorPort {
         Ok(())
     }
 
-    /// What the sensor sent, for the summary line.
+    /// What the sensor sent and answered, for the summary line.
     #[must_use]
-    pub fn summary(&self) -> Option<SensorClockTrack> {
+    pub fn summary(&self) -> Option<SensorSummary> {
         match self {
             SensorPort::Off => None,
-            SensorPort::Ild(_, clock) | SensorPort::Can(clock) => Some(*clock),
+            SensorPort::Ild(port) => Some(SensorSummary {
+                clock: port.clock,
+                commands: port.commands,
+            }),
+            SensorPort::Can(clock) => Some(SensorSummary {
+                clock: *clock,
+                commands: CommandCounts::default(),
+            }),
         }
     }
 }

@@ -9,7 +9,9 @@
 //! Checked against the manual: the command names, `ECHO ON|OFF`, the measuring rates, the
 //! `->` prompt and the `Exx`/`Wxx` shape (e.g. `E32 Timeout`). Unchecked, so kept in the
 //! named constants below: the parameter words of `OUTPUT`, `OUTDIST_RS422`, `OUTADD_RS422`,
-//! the baud rate list, and the error numbers other than 32.
+//! the baud rate list, the error numbers other than 32, the laser-power command
+//! ([`LASER_POWER_COMMAND_UNCHECKED`], not in our notes of the manual), and the form of a
+//! query's answer ([`IldReply::query_answer`]).
 
 use std::fmt::Write;
 
@@ -34,6 +36,12 @@ pub const OUTADD_WORDS_UNCHECKED: [&str; 6] = [
     "INTENSITY",
     "STATE",
 ];
+/// The command that switches the laser on and off (UNCHECKED: not in our notes of the ILD 2300
+/// manual; the name the optoNCDT family uses).
+pub const LASER_POWER_COMMAND_UNCHECKED: &str = "LASERPOW";
+/// The parameter words of [`LASER_POWER_COMMAND_UNCHECKED`]: off / on at full power
+/// (UNCHECKED).
+pub const LASER_POWER_WORDS_UNCHECKED: [&str; 2] = ["OFF", "FULL"];
 /// Error number and text for an unknown command (UNCHECKED number).
 pub const ERROR_UNKNOWN_COMMAND: (u8, &str) = (1, "Unknown command");
 /// Error number and text for a wrong parameter (UNCHECKED number).
@@ -99,6 +107,8 @@ pub enum IldCommand {
     Baudrate(Option<u32>),
     /// `OUTPUT [NONE|RS422|ANALOG]`: which interface outputs measured values.
     Output(Option<String>),
+    /// `LASERPOW [OFF|FULL]`: the laser off / on ([`LASER_POWER_COMMAND_UNCHECKED`]).
+    LaserPower(Option<bool>),
 }
 
 /// Why a command line was refused (the device answers with the error's `Exx` line).
@@ -140,6 +150,7 @@ impl IldCommand {
             IldCommand::OutAddRs422(_) => "OUTADD_RS422",
             IldCommand::Baudrate(_) => "BAUDRATE",
             IldCommand::Output(_) => "OUTPUT",
+            IldCommand::LaserPower(_) => LASER_POWER_COMMAND_UNCHECKED,
         }
     }
 
@@ -165,7 +176,16 @@ impl IldCommand {
             },
             IldCommand::Baudrate(baud) => baud.map(|b| b.to_string()).unwrap_or_default(),
             IldCommand::Output(word) => word.clone().unwrap_or_default(),
+            IldCommand::LaserPower(on) => on
+                .map(|on| on_off(on, LASER_POWER_WORDS_UNCHECKED))
+                .unwrap_or_default(),
         }
+    }
+
+    /// Whether this is a query (no parameters: the device answers the current setting).
+    #[must_use]
+    pub fn is_query(&self) -> bool {
+        self.parameters().is_empty() && *self != IldCommand::GetInfo
     }
 
     /// The command line with its CR, e.g. `MEASRATE 20\r`.
@@ -251,6 +271,10 @@ impl IldCommand {
                     })
                     .transpose()?,
             ),
+            LASER_POWER_COMMAND_UNCHECKED => IldCommand::LaserPower(
+                word_index(LASER_POWER_COMMAND_UNCHECKED, &LASER_POWER_WORDS_UNCHECKED)?
+                    .map(|i| i == 1),
+            ),
             "OUTPUT" => IldCommand::Output(
                 word_index("OUTPUT", &OUTPUT_WORDS_UNCHECKED)?
                     .map(|i| OUTPUT_WORDS_UNCHECKED[i].to_owned()),
@@ -330,6 +354,31 @@ impl IldReply {
         }
         out.push_str(PROMPT);
         out
+    }
+
+    /// The device's answer to a query (`MEASRATE` without a parameter): one information line
+    /// that is the command with its current setting, e.g. `MEASRATE 20`, which the host reads
+    /// back with [`IldReply::queried`]. (UNCHECKED: the manual says a reply repeats the
+    /// command with its parameters; that a query's setting comes back in this form is our
+    /// reading.)
+    #[must_use]
+    pub fn query_answer(echo: Option<String>, setting: &IldCommand) -> IldReply {
+        IldReply {
+            echo,
+            lines: vec![setting.encode().trim_end().to_owned()],
+            ..IldReply::default()
+        }
+    }
+
+    /// Host: the setting a query's reply carries: the first information line that parses as
+    /// a command named `name` with a parameter (see [`IldReply::query_answer`]).
+    #[must_use]
+    pub fn queried(&self, name: &str) -> Option<IldCommand> {
+        self.lines.iter().find_map(|line| {
+            IldCommand::parse(line)
+                .ok()
+                .filter(|c| c.name() == name && !c.is_query())
+        })
     }
 
     /// True when the command was not refused.
@@ -516,6 +565,9 @@ mod tests {
             IldCommand::OutAddRs422(Some(vec![])),
             IldCommand::Baudrate(Some(691_200)),
             IldCommand::Output(Some("RS422".to_owned())),
+            IldCommand::LaserPower(Some(false)),
+            IldCommand::LaserPower(Some(true)),
+            IldCommand::LaserPower(None),
         ];
         for command in commands {
             let line = command.encode();
@@ -523,6 +575,24 @@ mod tests {
             assert_eq!(IldCommand::parse(&line), Ok(command), "{line:?}");
         }
         assert_eq!(IldCommand::MeasRate(Some(20.0)).encode(), "MEASRATE 20\r");
+        assert_eq!(
+            IldCommand::LaserPower(Some(true)).encode(),
+            "LASERPOW FULL\r"
+        );
+    }
+
+    #[test]
+    fn a_query_answer_carries_the_setting_back() {
+        let answer = IldReply::query_answer(None, &IldCommand::MeasRate(Some(2.5)));
+        assert_eq!(answer.encode(), "MEASRATE 2.5\r\n->");
+        let parsed = IldReplyParser::new(false).push(answer.encode().as_bytes());
+        assert_eq!(
+            parsed[0].queried("MEASRATE"),
+            Some(IldCommand::MeasRate(Some(2.5)))
+        );
+        assert_eq!(parsed[0].queried("BAUDRATE"), None);
+        assert!(IldCommand::MeasRate(None).is_query());
+        assert!(!IldCommand::GetInfo.is_query());
     }
 
     #[test]

@@ -240,6 +240,49 @@ impl CanLink {
         }
     }
 
+    /// Host, at the end of a session (normal end or error path): closes the SLCAN channel if
+    /// it is open (`C`, waiting at most
+    /// [`CLOSE_REPLY_TIMEOUT`](super::slcan::CLOSE_REPLY_TIMEOUT) for the CR), so a real
+    /// adapter is not left open on the bus. SocketCAN, a device end, a closed channel:
+    /// nothing. Dropping an open SLCAN host link writes `C` as a best-effort fallback.
+    ///
+    /// # Errors
+    /// The adapter's silence, or a line error (the peer is gone: nothing is left open).
+    pub async fn close(&mut self) -> LinkResult<()> {
+        match &mut self.transport {
+            Transport::SocketCan(_) => Ok(()),
+            Transport::Slcan(port) => port.close().await,
+        }
+    }
+
+    /// Device end of SLCAN: the host's `C` on an open channel ends the session: the next
+    /// [`CanLink::recv`] returns [`LinkError::ChannelClosed`] (the emulator treats it like a
+    /// hang-up). SocketCAN, or a host end: no effect.
+    pub fn end_run_on_close(&mut self) {
+        if let Transport::Slcan(port) = &mut self.transport {
+            port.end_run_on_close();
+        }
+    }
+
+    /// Host, for conformance testing only: sends a raw SLCAN line (garbage, a truncated
+    /// frame), see [`SlcanPort::send_raw_line`]; returns the device's answer (BEL expected) or
+    /// `None` when none came within its wait. Not recorded in the capture (it is no frame).
+    ///
+    /// # Errors
+    /// [`LinkError::Unsupported`] on SocketCAN (no lines there); the SLCAN port's errors.
+    pub async fn send_raw_line(
+        &mut self,
+        line: &[u8],
+    ) -> LinkResult<Option<crate::slcan::SlcanMessage>> {
+        match &mut self.transport {
+            Transport::SocketCan(_) => Err(LinkError::Unsupported {
+                link: self.name.clone(),
+                detail: "raw SLCAN lines on a SocketCAN interface".to_owned(),
+            }),
+            Transport::Slcan(port) => port.send_raw_line(line).await,
+        }
+    }
+
     /// Host: (re)opens the SLCAN channel at `bitrate` (`C`, `Sn`, `O`); SocketCAN: nothing.
     ///
     /// # Errors

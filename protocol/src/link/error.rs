@@ -40,6 +40,14 @@ pub enum LinkError {
         /// The link's URI (or path).
         link: String,
     },
+    /// Device end of SLCAN, when asked to end its run on close
+    /// ([`crate::link::CanLink::end_run_on_close`]): the host closed the open channel with `C`.
+    /// Like a hang-up, the end of the session, but the line stays usable.
+    #[error("{link}: the host closed the SLCAN channel (`C`)")]
+    ChannelClosed {
+        /// The link's URI (or path).
+        link: String,
+    },
     /// An SLCAN adapter (or device end) refused a command with BEL.
     #[error("{link}: the SLCAN adapter refused `{command}` (replied BEL)")]
     AdapterRefused {

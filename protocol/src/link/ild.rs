@@ -28,6 +28,9 @@ use crate::ild::stream::{FACTORY_BAUD, IldDecoder, encode_cycle};
 const READ_CHUNK: usize = 4096;
 /// The longest command line the device end accepts; longer lines are refused.
 pub const MAX_COMMAND_LINE: usize = 256;
+/// The longest raw line [`IldLink::send_raw_command_line`] sends (twice what a device accepts,
+/// to test its cap).
+pub const MAX_RAW_COMMAND_LINE: usize = 2 * MAX_COMMAND_LINE;
 
 /// One output cycle as received: the distance (or error) and the extra values
 /// `OUTADD_RS422` enabled, in the sensor's order.
@@ -275,7 +278,40 @@ impl IldLink {
         command: &IldCommand,
         timeout: Duration,
     ) -> LinkResult<IldReply> {
-        let text = command.encode();
+        let reply = self.exchange_line(command.encode(), timeout).await?;
+        if let (IldCommand::Echo(Some(on)), true) = (command, reply.is_ok()) {
+            self.echo = *on;
+        }
+        Ok(reply)
+    }
+
+    /// Host, for conformance testing only: sends `line` and a CR as given (an unknown command,
+    /// a bad parameter, an overlong line) and waits up to `timeout` for the reply, which should
+    /// be a refusal. Use [`IldLink::command`] for real commands.
+    ///
+    /// # Errors
+    /// [`LinkError::Protocol`] for a line holding CR or LF or longer than
+    /// [`MAX_RAW_COMMAND_LINE`]; otherwise as [`IldLink::command`].
+    pub async fn send_raw_command_line(
+        &mut self,
+        line: &str,
+        timeout: Duration,
+    ) -> LinkResult<IldReply> {
+        if line.contains(['\r', '\n']) || line.len() > MAX_RAW_COMMAND_LINE {
+            return Err(LinkError::Protocol {
+                link: self.name().to_owned(),
+                detail: format!(
+                    "a raw command line must hold no CR/LF and at most {MAX_RAW_COMMAND_LINE} \
+                     bytes (got {})",
+                    line.len()
+                ),
+            });
+        }
+        self.exchange_line(format!("{line}\r"), timeout).await
+    }
+
+    /// Host: sends one command line (with its CR) and waits for the reply.
+    async fn exchange_line(&mut self, text: String, timeout: Duration) -> LinkResult<IldReply> {
         self.replies.clear();
         self.reply_parser = Some(IldReplyParser::new(self.echo));
         self.send_bytes(text.as_bytes()).await?;
@@ -289,15 +325,11 @@ impl IldLink {
         };
         let outcome = tokio::time::timeout(timeout, exchange).await;
         self.reply_parser = None;
-        let reply = outcome.map_err(|_elapsed| LinkError::NoReply {
+        outcome.map_err(|_elapsed| LinkError::NoReply {
             link: self.name().to_owned(),
             command: text.trim_end().to_owned(),
             waited: timeout,
-        })??;
-        if let (IldCommand::Echo(Some(on)), true) = (command, reply.is_ok()) {
-            self.echo = *on;
-        }
-        Ok(reply)
+        })?
     }
 
     /// Device: sends one output cycle (raw 18-bit words, the distance first).
@@ -340,7 +372,24 @@ impl IldLink {
         self.send_bytes(reply.encode().as_bytes()).await
     }
 
+    /// Device: queues a reply and writes what the line takes now, without waiting; the rest
+    /// goes out ahead of the next cycle, reply, or command poll. For a node that must never
+    /// block (the emulator's mirror loop).
+    ///
+    /// # Errors
+    /// Line errors ([`LinkError::HangUp`] when the host went away).
+    pub fn reply_now(&mut self, reply: &IldReply) -> LinkResult<()> {
+        self.queue(reply.encode().as_bytes())?;
+        self.line.try_flush_pending(&mut self.pending_tx)
+    }
+
     async fn send_bytes(&mut self, bytes: &[u8]) -> LinkResult<()> {
+        self.queue(bytes)?;
+        self.line.flush_pending(&mut self.pending_tx).await
+    }
+
+    /// Queues `bytes` for sending (behind anything pending) and records them.
+    fn queue(&mut self, bytes: &[u8]) -> LinkResult<()> {
         self.pending_tx.extend_from_slice(bytes);
         if let Some(capture) = &mut self.capture {
             capture
@@ -350,7 +399,7 @@ impl IldLink {
                     source,
                 })?;
         }
-        self.line.flush_pending(&mut self.pending_tx).await
+        Ok(())
     }
 
     async fn fill(&mut self) -> LinkResult<()> {

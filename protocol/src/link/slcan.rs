@@ -3,9 +3,14 @@
 //!
 //! Host, on open: `C` (a BEL reply is accepted: the channel was already closed), `Sn` for the
 //! bit rate, `O`; each must be answered CR within [`REPLY_TIMEOUT`]. Frames that arrive before
-//! the `O` is answered are stale and dropped. On close: `C`. Transmit acknowledgements (`z`,
-//! `Z`, bare CR) are swallowed; an unsolicited BEL means the adapter refused a frame and is
-//! returned as an error by the next receive.
+//! the `O` is answered are stale and dropped. Transmit acknowledgements (`z`, `Z`, bare CR) are
+//! swallowed; an unsolicited BEL means the adapter refused a frame and is returned as an error
+//! by the next receive.
+//!
+//! Closing: a host whose channel is open always sends `C` at the end, so a real adapter is not
+//! left open on the bus. [`SlcanPort::close`] sends it and waits (at most
+//! [`CLOSE_REPLY_TIMEOUT`]) for the CR; dropping a port whose channel is still open writes `C`
+//! once, without waiting, as a fallback (see the `Drop` impl for its limits).
 //!
 //! Device: `O` opens the channel (BEL if already open), `L` opens it listen-only (host frames
 //! are then refused with BEL), `C` closes it, `Sn` sets the bit rate and `Yn` the FD data bit
@@ -14,6 +19,10 @@
 //! BEL while it is closed; malformed lines are answered BEL. Frames the device sends while the
 //! channel is closed are dropped, as an adapter does with bus traffic nobody asked for. The
 //! device does not acknowledge frames (no `z`): the wire stays lean at 20 kHz.
+//!
+//! A device asked to ([`SlcanPort::end_run_on_close`]) reports the host's `C` on an open channel
+//! as [`LinkError::ChannelClosed`] from its next receive: the emulator ends its run there, as on
+//! a hang-up.
 //!
 //! Malformed lines (garbage) cost one line: the protocol's decoder resynchronises at the next
 //! CR; they are counted in [`SlcanCounters`].
@@ -29,6 +38,14 @@ use crate::slcan::{SlcanBitrate, SlcanDecoder, SlcanEvent, SlcanMessage, encode_
 
 /// How long the host waits for the adapter's answer to a command.
 pub const REPLY_TIMEOUT: Duration = Duration::from_secs(1);
+/// How long [`SlcanPort::close`] waits for the adapter's CR to `C`: bounded, so an end of run
+/// (or an error path) never hangs on a frozen adapter.
+pub const CLOSE_REPLY_TIMEOUT: Duration = Duration::from_millis(500);
+/// How long [`SlcanPort::send_raw_line`] waits for the device's answer to a raw line.
+pub const RAW_LINE_REPLY_TIMEOUT: Duration = Duration::from_millis(200);
+/// The longest raw line [`SlcanPort::send_raw_line`] sends (a few times the longest SLCAN
+/// line, enough to test a device's line-length cap).
+pub const MAX_RAW_LINE_LEN: usize = 4 * crate::slcan::MAX_LINE_LEN;
 /// What the device end answers to `V` (Lawicel style: hardware 1.0, software 1.3).
 pub const DEVICE_VERSION: &str = "1013";
 /// What the device end answers to `N`.
@@ -67,6 +84,8 @@ pub struct SlcanPort {
     channel_open: bool,
     /// Device: the host opened the channel with `L` (listen-only): its frames are refused.
     listen_only: bool,
+    /// Device: report the host's `C` on an open channel as the end of the run.
+    end_run_on_close: bool,
     bitrate: SlcanBitrate,
     counters: SlcanCounters,
 }
@@ -90,6 +109,7 @@ impl SlcanPort {
             pending_error: None,
             channel_open: false,
             listen_only: false,
+            end_run_on_close: false,
             bitrate,
             counters: SlcanCounters::default(),
         };
@@ -130,26 +150,92 @@ impl SlcanPort {
     pub async fn open_channel(&mut self, bitrate: SlcanBitrate) -> LinkResult<()> {
         self.channel_open = false;
         // BEL to `C` only says the channel was closed already.
-        self.command(SlcanMessage::Close, true).await?;
+        self.command(SlcanMessage::Close, true, REPLY_TIMEOUT)
+            .await?;
         self.frames.clear();
-        self.command(SlcanMessage::Bitrate(bitrate), false).await?;
+        self.command(SlcanMessage::Bitrate(bitrate), false, REPLY_TIMEOUT)
+            .await?;
         self.bitrate = bitrate;
-        self.command(SlcanMessage::Open, false).await?;
+        self.command(SlcanMessage::Open, false, REPLY_TIMEOUT)
+            .await?;
         self.frames.clear();
         self.channel_open = true;
         Ok(())
     }
 
-    /// Host: closes the channel (`C`). Device: nothing to do.
+    /// Host: closes the channel (`C`), whether or not it is open (to reopen it later).
+    /// Device: nothing to do.
     ///
     /// # Errors
     /// As [`SlcanPort::start`].
     pub async fn close_channel(&mut self) -> LinkResult<()> {
         if self.role == Role::Host {
             self.channel_open = false;
-            self.command(SlcanMessage::Close, true).await?;
+            self.command(SlcanMessage::Close, true, REPLY_TIMEOUT)
+                .await?;
         }
         Ok(())
+    }
+
+    /// Host, at the end of a session: if the channel is open, sends `C` and waits at most
+    /// [`CLOSE_REPLY_TIMEOUT`] for the adapter's CR (a BEL is accepted: the adapter is closed
+    /// either way). The channel counts as closed afterwards even when this fails, so a later
+    /// drop does not send `C` again. Device, or a closed channel: nothing to do.
+    ///
+    /// # Errors
+    /// [`LinkError::NoReply`] when the adapter did not answer in time; line errors (a peer
+    /// that hung up: nothing is left to close then).
+    pub async fn close(&mut self) -> LinkResult<()> {
+        if self.role != Role::Host || !self.channel_open {
+            return Ok(());
+        }
+        self.channel_open = false;
+        self.command(SlcanMessage::Close, true, CLOSE_REPLY_TIMEOUT)
+            .await
+            .map(drop)
+    }
+
+    /// Device: from now on, report the host's `C` on an open channel as
+    /// [`LinkError::ChannelClosed`] from the next receive (after the frames received before
+    /// it). The `C` is still answered with CR. Host: no effect.
+    pub fn end_run_on_close(&mut self) {
+        self.end_run_on_close = true;
+    }
+
+    /// Host, for conformance testing only: sends `line` and a CR exactly as given, bypassing
+    /// the codec (garbage, a truncated frame, an overlong line), and waits up to
+    /// [`RAW_LINE_REPLY_TIMEOUT`] for the device's answer. Returns that answer (an adapter
+    /// answers a bad line with BEL, [`SlcanMessage::Nack`]) or `None` when none came. The
+    /// answer is consumed here, so a BEL does not fail the next receive.
+    ///
+    /// # Errors
+    /// [`LinkError::Protocol`] for a line with a CR in it or longer than
+    /// [`MAX_RAW_LINE_LEN`], or on a device end; line errors.
+    pub async fn send_raw_line(&mut self, line: &[u8]) -> LinkResult<Option<SlcanMessage>> {
+        let refuse = |detail: String| LinkError::Protocol {
+            link: self.name().to_owned(),
+            detail,
+        };
+        if self.role != Role::Host {
+            return Err(refuse("raw lines are sent by the host end only".to_owned()));
+        }
+        if line.contains(&b'\r') || line.len() > MAX_RAW_LINE_LEN {
+            return Err(refuse(format!(
+                "a raw line must hold no CR and at most {MAX_RAW_LINE_LEN} bytes (got {})",
+                line.len()
+            )));
+        }
+        let mut text = line.to_vec();
+        text.push(b'\r');
+        let label = String::from_utf8_lossy(line).into_owned();
+        match self
+            .exchange(text, label, true, RAW_LINE_REPLY_TIMEOUT)
+            .await
+        {
+            Ok(reply) => Ok(Some(reply)),
+            Err(LinkError::NoReply { .. }) => Ok(None),
+            Err(error) => Err(error),
+        }
     }
 
     /// Host: asks the adapter for its version (`V`) and returns the text after the `V`.
@@ -157,7 +243,10 @@ impl SlcanPort {
     /// # Errors
     /// As [`SlcanPort::start`], and [`LinkError::Protocol`] for an answer that is no version.
     pub async fn version(&mut self) -> LinkResult<String> {
-        match self.command(SlcanMessage::VersionRequest, false).await? {
+        match self
+            .command(SlcanMessage::VersionRequest, false, REPLY_TIMEOUT)
+            .await?
+        {
             SlcanMessage::Version(text) => Ok(text),
             other => Err(LinkError::Protocol {
                 link: self.name().to_owned(),
@@ -238,13 +327,32 @@ impl SlcanPort {
         self.line.flush_pending(&mut self.pending_tx).await
     }
 
-    /// Host: sends `message` and waits for its reply; BEL is an error unless `bel_ok`.
-    async fn command(&mut self, message: SlcanMessage, bel_ok: bool) -> LinkResult<SlcanMessage> {
+    /// Host: sends `message` and waits up to `timeout` for its reply; BEL is an error unless
+    /// `bel_ok`.
+    async fn command(
+        &mut self,
+        message: SlcanMessage,
+        bel_ok: bool,
+        timeout: Duration,
+    ) -> LinkResult<SlcanMessage> {
         let text = message.encode();
         let command = text.trim_end_matches('\r').to_owned();
+        self.exchange(text.into_bytes(), command, bel_ok, timeout)
+            .await
+    }
+
+    /// Host: sends `bytes` (one line) and waits up to `timeout` for the reply; `command` names
+    /// the line in errors.
+    async fn exchange(
+        &mut self,
+        bytes: Vec<u8>,
+        command: String,
+        bel_ok: bool,
+        timeout: Duration,
+    ) -> LinkResult<SlcanMessage> {
         self.replies.clear();
         self.awaiting_reply = true;
-        self.pending_tx.extend_from_slice(text.as_bytes());
+        self.pending_tx.extend_from_slice(&bytes);
         let exchange = async {
             loop {
                 if let Some(reply) = self.replies.pop_front() {
@@ -253,13 +361,13 @@ impl SlcanPort {
                 self.fill().await?;
             }
         };
-        let outcome = tokio::time::timeout(REPLY_TIMEOUT, exchange).await;
+        let outcome = tokio::time::timeout(timeout, exchange).await;
         self.awaiting_reply = false;
         match outcome {
             Err(_elapsed) => Err(LinkError::NoReply {
                 link: self.name().to_owned(),
                 command,
-                waited: REPLY_TIMEOUT,
+                waited: timeout,
             }),
             Ok(Err(error)) => Err(error),
             Ok(Ok(SlcanMessage::Nack)) if !bel_ok => Err(LinkError::AdapterRefused {
@@ -335,6 +443,11 @@ impl SlcanPort {
                 SlcanMessage::Ack
             }
             SlcanMessage::Close => {
+                if self.channel_open && self.end_run_on_close {
+                    self.pending_error = Some(LinkError::ChannelClosed {
+                        link: self.name().to_owned(),
+                    });
+                }
                 self.channel_open = false;
                 SlcanMessage::Ack
             }
@@ -367,5 +480,30 @@ impl SlcanPort {
     fn malformed(&mut self, description: String) {
         self.counters.malformed_lines += 1;
         self.counters.last_malformed = Some(description);
+    }
+}
+
+/// The fallback close: a host whose channel is still open writes `C` once, without waiting
+/// and ignoring every error, so an adapter is closed even when the session ended by an error
+/// or a panic that skipped [`SlcanPort::close`]. When a frame was left half written (a
+/// cancelled send), a CR first ends that line so the `C` stands on its own.
+///
+/// Limits (why [`SlcanPort::close`] is the normal path): the write is one non-blocking attempt,
+/// so a full output buffer loses the `C`; and on a pty master the kernel discards what the
+/// slave end has not read yet when the master closes, so a peer program may never see it (a
+/// real adapter, opened by path, gets it).
+impl Drop for SlcanPort {
+    fn drop(&mut self) {
+        if self.role != Role::Host || !self.channel_open {
+            return;
+        }
+        self.channel_open = false;
+        let mut bytes = if self.pending_tx.is_empty() {
+            Vec::new()
+        } else {
+            b"\r".to_vec()
+        };
+        bytes.extend_from_slice(SlcanMessage::Close.encode().as_bytes());
+        let _ = self.line.try_flush_pending(&mut bytes);
     }
 }

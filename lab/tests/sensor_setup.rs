@@ -1,0 +1,228 @@
+//! The host's sensor set-up against the emulated sensor's port (the emulator's real device
+//! end) and a scripted device, over real pty pairs: a correct configuration read back, the
+//! laser switched off in the stream, mismatches refused naming both values, a device that
+//! answers errors.
+
+use std::path::Path;
+
+use scanhil_controller::rig::RigSensor;
+use scanhil_controller::run::sensor_link::SensorLink;
+use scanhil_controller::run::sensor_setup::{SensorSetupError, configure};
+use scanhil_emulator::scene::Scene;
+use scanhil_emulator::sensor::IldSample;
+use scanhil_emulator::serve::sensor_port::SensorPort;
+use scanhil_protocol::ild::command::IldCommand;
+use scanhil_protocol::ild::{IldError, IldValue};
+use scanhil_protocol::link::{CanLink, LinkError, PtyPair, Role, SerialLine};
+
+fn scene() -> Scene {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenes/duplo-2x4-130mm.json");
+    Scene::load(&path).unwrap()
+}
+
+/// The host's sensor link on a pty master, the emulated sensor's port on its slave path.
+fn host_and_emulated_sensor(scene: &Scene) -> (SensorLink, SensorPort) {
+    let pair = PtyPair::open().unwrap();
+    let uri = format!("ild:{}", pair.slave_path().display());
+    let (device, _) = SensorPort::open(Some(&uri), scene).unwrap();
+    (SensorLink::on_pty(pair).unwrap(), device)
+}
+
+/// Runs the set-up while the emulated sensor answers.
+async fn set_up(
+    host: &mut SensorLink,
+    device: &mut SensorPort,
+    expected: &RigSensor,
+) -> Result<scanhil_controller::run::sensor_setup::ConfiguredSensor, SensorSetupError> {
+    let link = host.ild_link_mut().unwrap();
+    tokio::select! {
+        result = configure(link, expected) => result,
+        error = device.answer_commands() => panic!("the sensor port failed: {error}"),
+    }
+}
+
+fn sample(counter: u32) -> IldSample {
+    IldSample {
+        t_s: f64::from(counter) * 5e-5,
+        counter,
+        value: IldValue::Distance(30_000 + counter),
+        true_distance_mm: Some(120.0),
+    }
+}
+
+#[tokio::test]
+async fn the_emulated_sensor_is_configured_and_read_back_then_streams() {
+    let scene = scene();
+    let (mut host, mut device) = host_and_emulated_sensor(&scene);
+    let expected = expectation(&scene);
+    let report = set_up(&mut host, &mut device, &expected).await.unwrap();
+    assert_eq!(report.device_name, "ILD2300");
+    assert_eq!(report.range_span_mm, 100.0);
+    assert_eq!(report.range_start_mm_expected, 70.0);
+    assert_eq!(report.measuring_rate_set_hz, 20_000.0);
+    assert_eq!(report.measuring_rate_read_back_hz, 20_000.0);
+    assert_eq!(report.extra_values, vec!["COUNTER".to_owned()]);
+    assert_eq!(report.baud_read_back, Some(691_200));
+    assert_eq!(
+        report.commands,
+        [
+            "OUTPUT NONE",
+            "ECHO OFF",
+            "GETINFO",
+            "MEASRATE 20",
+            "MEASRATE",
+            "OUTDIST_RS422 DIST1",
+            "OUTADD_RS422 COUNTER",
+            "LASERPOW FULL",
+            "BAUDRATE",
+            "OUTPUT RS422",
+        ]
+    );
+
+    // The stream runs with distance and counter; laser off turns the distances into the
+    // laser-off error value.
+    let mut fsm = CanLink::open_pty(PtyPair::open().unwrap(), None, Role::Device)
+        .await
+        .unwrap();
+    device
+        .emit(&[sample(1), sample(2)], &mut fsm)
+        .await
+        .unwrap();
+    let link = host.ild_link_mut().unwrap();
+    let cycle = link.recv_cycle().await.unwrap();
+    assert_eq!(
+        (cycle.distance, cycle.extras),
+        (IldValue::Distance(30_001), vec![1])
+    );
+    assert_eq!(link.recv_cycle().await.unwrap().extras, vec![2]);
+    let off = tokio::select! {
+        reply = link.command(&IldCommand::LaserPower(Some(false)), std::time::Duration::from_secs(1)) => reply.unwrap(),
+        error = device.answer_commands() => panic!("{error}"),
+    };
+    assert!(off.is_ok(), "{off:?}");
+    device.emit(&[sample(3)], &mut fsm).await.unwrap();
+    let cycle = host.ild_link_mut().unwrap().recv_cycle().await.unwrap();
+    assert_eq!(cycle.distance, IldValue::Error(IldError::LaserOff));
+    assert_eq!(cycle.extras, vec![3]);
+}
+
+#[tokio::test]
+async fn a_different_measuring_rate_is_refused_naming_both_rates() {
+    let scene = scene();
+    let (mut host, mut device) = host_and_emulated_sensor(&scene);
+    let expected = RigSensor {
+        measuring_rate_hz: 10_000.0,
+        ..expectation(&scene)
+    };
+    let error = set_up(&mut host, &mut device, &expected).await.unwrap_err();
+    let text = error.to_string();
+    assert!(
+        text.starts_with("sensor reports measuring rate 20000 Hz, the rig expects 10000 Hz"),
+        "{text}"
+    );
+    assert!(
+        text.contains("`MEASRATE 10`: E04 Wrong parameter"),
+        "{text}"
+    );
+}
+
+#[tokio::test]
+async fn a_different_measuring_range_or_an_unknown_rate_is_refused() {
+    let scene = scene();
+    let (mut host, mut device) = host_and_emulated_sensor(&scene);
+    let expected = RigSensor {
+        range_span_mm: 50.0,
+        ..expectation(&scene)
+    };
+    let error = set_up(&mut host, &mut device, &expected).await.unwrap_err();
+    assert_eq!(
+        error.to_string(),
+        "sensor reports measuring range 100.00 mm, the rig expects 50.00 mm"
+    );
+    let odd = RigSensor {
+        measuring_rate_hz: 12_345.0,
+        ..expectation(&scene)
+    };
+    let error = set_up(&mut host, &mut device, &odd).await.unwrap_err();
+    assert!(error.to_string().contains("12345 Hz"), "{error}");
+}
+
+/// A scripted device on the pty master: answers each command line by `answer`.
+async fn scripted_device(mut line: SerialLine, answer: impl Fn(&str) -> String) {
+    let mut text = Vec::new();
+    let mut buf = [0; 256];
+    loop {
+        let n = match line.read(&mut buf).await {
+            Ok(n) => n,
+            Err(LinkError::HangUp { .. }) => return,
+            Err(error) => panic!("{error}"),
+        };
+        for &byte in &buf[..n] {
+            if byte == b'\r' {
+                let command = String::from_utf8_lossy(&text).into_owned();
+                text.clear();
+                line.write_all(answer(&command).as_bytes()).await.unwrap();
+            } else {
+                text.push(byte);
+            }
+        }
+    }
+}
+
+#[tokio::test]
+async fn a_device_answering_errors_fails_the_set_up_naming_command_and_error() {
+    let expected = expectation(&scene());
+    // Every command refused.
+    let pair = PtyPair::open().unwrap();
+    let uri = format!("ild:{}", pair.slave_path().display())
+        .parse()
+        .unwrap();
+    let device = scripted_device(SerialLine::from_pty(pair, "device").unwrap(), |_| {
+        "E32 Timeout\r\n->".to_owned()
+    });
+    let mut host = SensorLink::open(&uri).unwrap();
+    let error = tokio::select! {
+        result = configure(host.ild_link_mut().unwrap(), &expected) => result.unwrap_err(),
+        () = device => panic!("the device ended"),
+    };
+    assert_eq!(
+        error.to_string(),
+        "sensor refused `OUTPUT NONE`: E32 Timeout"
+    );
+
+    // A sensor that does not know the laser command (its name is unchecked).
+    let pair = PtyPair::open().unwrap();
+    let uri = format!("ild:{}", pair.slave_path().display())
+        .parse()
+        .unwrap();
+    let device =
+        scripted_device(
+            SerialLine::from_pty(pair, "device").unwrap(),
+            |command| match command {
+                "GETINFO" => "Name: ILD2300\r\nSerial: 1\r\nMeasuring range: 100.00mm\r\n->".into(),
+                "MEASRATE" => "MEASRATE 20\r\n->".into(),
+                c if c.starts_with("LASERPOW") => "E01 Unknown command\r\n->".into(),
+                _ => "->".into(),
+            },
+        );
+    let mut host = SensorLink::open(&uri).unwrap();
+    let error = tokio::select! {
+        result = configure(host.ild_link_mut().unwrap(), &expected) => result.unwrap_err(),
+        () = device => panic!("the device ended"),
+    };
+    assert_eq!(
+        error.to_string(),
+        "sensor refused `LASERPOW FULL`: E01 Unknown command"
+    );
+}
+
+/// What the host expects of the scene's sensor: its rate and range.
+fn expectation(scene: &Scene) -> RigSensor {
+    let sensor = scene.sensor.unwrap_or_default();
+    RigSensor {
+        measuring_rate_hz: sensor.measuring_rate_hz,
+        range_start_mm: sensor.range.start_mm,
+        range_span_mm: sensor.range.span_mm,
+    }
+}
