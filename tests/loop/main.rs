@@ -23,3 +23,5 @@ mod conformance;
 mod timing;
 // The host alone: a rig and no scene for devices it did not start; scenes checked against rigs.
 mod rig_alone;
+// An interrupted scan (Ctrl-C, SIGTERM): zero current, C sent, outputs written, exit 3.
+mod interrupted;

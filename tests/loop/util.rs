@@ -155,6 +155,8 @@ pub struct DecodedRecording {
     pub command_seqs: Vec<u16>,
     /// Fault frames.
     pub faults: Vec<Message>,
+    /// The last coil command, in A.
+    pub last_command_a: Option<scanhil_protocol::plant_units::ActuatorPair>,
 }
 
 /// Decodes every line of a candump `-L` log with the protocol's decoder; panics naming the
@@ -188,7 +190,10 @@ pub fn decode_candump(path: &Path) -> DecodedRecording {
         decoded.frames += 1;
         match message {
             Message::AngleReading(reading) => decoded.angle_seqs.push(reading.seq),
-            Message::CoilCommand(command) => decoded.command_seqs.push(command.seq),
+            Message::CoilCommand(command) => {
+                decoded.command_seqs.push(command.seq);
+                decoded.last_command_a = Some(command.amps());
+            }
             Message::Fault(_) => decoded.faults.push(message),
             _ => {}
         }

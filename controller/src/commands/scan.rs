@@ -92,14 +92,15 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 
 fn summary_text(report: &serde_json::Value, out_dir: &std::path::Path) -> String {
     let tracking = &report["tracking_error"]["second_half"];
-    let feature = &report["feature"];
+    let imaging = &report["imaging"];
+    let feature = &imaging["feature"];
     let mut text = format!(
         "scan {}: {} of {} periods, {} points\n\
          tracking error (second half, rms): alpha {:.2} urad, beta {:.2} urad\n",
         report["scenario"]["name"].as_str().unwrap_or("?"),
         report["periods"]["done"],
         report["periods"]["planned"],
-        report["samples"]["points"],
+        imaging["points"].as_u64().unwrap_or(0),
         tracking["alpha"]["rms_urad"].as_f64().unwrap_or(f64::NAN),
         tracking["beta"]["rms_urad"].as_f64().unwrap_or(f64::NAN),
     );
@@ -109,7 +110,7 @@ fn summary_text(report: &serde_json::Value, out_dir: &std::path::Path) -> String
             feature["std_mm"].as_f64().unwrap_or(f64::NAN),
             feature["points"]
         );
-    } else if let Some(error) = feature["error"].as_str() {
+    } else if let Some(error) = imaging["feature_error"].as_str() {
         text += &format!("feature height: not measured ({error})\n");
     }
     text + &format!("outputs in {}", out_dir.display())

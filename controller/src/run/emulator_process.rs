@@ -5,6 +5,7 @@
 //! (`--emulator`), the `SCANHIL_EMULATOR` environment variable, then `scanhil-emulator` next to
 //! the running `scanhil` executable (the same cargo target directory).
 
+use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 
@@ -74,13 +75,16 @@ pub struct EmulatorProcess {
 
 impl EmulatorProcess {
     /// Starts `binary` with `args`; its stderr goes to ours (its errors reach the user), its
-    /// stdout is piped (it reports its own summary there).
+    /// stdout is piped (it reports its own summary there). It runs in a process group of its
+    /// own, so a Ctrl-C on the terminal reaches the host alone, which then ends the emulator's
+    /// run through the link ([`super::interrupt`]).
     ///
     /// # Errors
     /// [`EmulatorError::Spawn`] with the OS error.
     pub fn start(binary: &Path, args: &[String]) -> Result<EmulatorProcess, EmulatorError> {
         let child = Command::new(binary)
             .args(args)
+            .process_group(0)
             .stdin(Stdio::null())
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())

@@ -60,6 +60,12 @@ pub enum LoopError {
     /// A message could not be encoded.
     #[error("cannot encode a frame: {0}")]
     Encode(String),
+    /// A signal (Ctrl-C, SIGTERM, SIGHUP) stopped the scan.
+    #[error("interrupted by {signal}")]
+    Interrupted {
+        /// The signal's name.
+        signal: &'static str,
+    },
     /// The transport failed (hang-up: the emulator or adapter went away).
     #[error(transparent)]
     Link(#[from] LinkError),

@@ -8,15 +8,16 @@ use scanhil_protocol::can::CanFrame;
 
 pub use super::host_loop::LoopRecord;
 use super::host_loop::{Heard, HostAction, HostLoop};
+use super::interrupt::Interrupt;
 use super::mirror_link::{LoopError, MirrorLink};
 use super::progress::Progress;
 use super::sensor_link::SensorLink;
 use crate::scan_controller::ScanController;
 use crate::trajectory::Trajectory;
 
-/// Runs `periods` lockstep periods, then ends the run with the node. A link error stops the
-/// loop (after commanding zero where the link still allows it) and is returned inside the
-/// record, so what was recorded stays.
+/// Runs `periods` lockstep periods, then ends the run with the node. A link error or a
+/// stopping signal stops the loop (after commanding zero where the link still allows it) and
+/// is returned inside the record, so what was recorded stays.
 pub async fn run(
     mirror: &mut MirrorLink,
     sensor: &mut SensorLink,
@@ -24,6 +25,7 @@ pub async fn run(
     trajectory: &Trajectory,
     periods: u64,
     progress: &Progress,
+    interrupt: &mut Interrupt,
 ) -> LoopRecord {
     let mut host = HostLoop::new(controller, trajectory, periods, mirror.take_inbox());
     let allowance = mirror.total_allowance();
@@ -47,6 +49,10 @@ pub async fn run(
                     frame = tokio::time::timeout_at(deadline, mirror.recv_at(t_s)) => Some(frame),
                     error = sensor.pump() => {
                         host.on_error(error);
+                        None
+                    }
+                    signal = interrupt.recv() => {
+                        host.on_error(LoopError::Interrupted { signal });
                         None
                     }
                 };

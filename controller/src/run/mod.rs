@@ -14,6 +14,7 @@
 //! - [`sensor_setup`]: configuring and reading back the sensor before a scan.
 //! - [`bus_load`]: refusing a loop that cannot fit on a link's bit rate.
 //! - [`lockstep`], [`realtime`]: the two loops.
+//! - [`interrupt`]: Ctrl-C, SIGTERM and SIGHUP stop the loop like any early stop.
 //! - [`pairing`]: distances with angles by the sensor's own time.
 //! - [`tracking`]: reference against measured angles.
 //! - [`output`]: report.json, PLY, height map, plots.
@@ -26,6 +27,7 @@ pub mod conformance;
 pub mod emulator_process;
 pub mod host_inbox;
 pub mod host_loop;
+pub mod interrupt;
 pub mod lockstep;
 pub mod mirror_link;
 pub mod output;
@@ -154,6 +156,8 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         };
         let mut links = open_links(&plan).await?;
         let progress = progress::Progress::new(periods, &scenario.name);
+        let mut interrupt =
+            interrupt::Interrupt::install().context("installing the signal handlers")?;
         let record = match scenario.timing.mode {
             TimingMode::Lockstep => {
                 lockstep::run(
@@ -163,6 +167,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
                     &scenario.trajectory,
                     periods,
                     &progress,
+                    &mut interrupt,
                 )
                 .await
             }
@@ -174,6 +179,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
                     &scenario.trajectory,
                     periods,
                     &progress,
+                    &mut interrupt,
                 )
                 .await
             }

@@ -10,6 +10,8 @@ use std::time::{Duration, Instant};
 use scanhil_protocol::loop_timing::{PeriodRecorder, PeriodStats};
 use scanhil_protocol::plant_units::SensingPair;
 
+use super::host_loop::LoopError;
+use super::interrupt::Interrupt;
 use super::lockstep::LoopRecord;
 use super::mirror_link::MirrorLink;
 use super::progress::Progress;
@@ -36,6 +38,7 @@ pub async fn run(
     trajectory: &Trajectory,
     periods: u64,
     progress: &Progress,
+    interrupt: &mut Interrupt,
 ) -> LoopRecord {
     let period_s = controller.period_s();
     let mut record = LoopRecord::new(period_s, periods);
@@ -49,6 +52,7 @@ pub async fn run(
         let reading = tokio::select! {
             reading = mirror.next_reading(expected) => reading,
             error = sensor.pump() => Err(error),
+            signal = interrupt.recv() => Err(LoopError::Interrupted { signal }),
         };
         let (j, angles) = match reading {
             Ok(reading) => reading,
