@@ -16,6 +16,8 @@
 //!   frequencies.
 //! - [`plant_model`]: eq. 4, ZOH-discretised, with the one-period command delay.
 //! - [`loop_analysis`]: the nominal closed loop: poles, margins, bandwidth, T.
+//! - [`steady_state`]: the steady-state tracking error the nominal loop predicts for a
+//!   periodic reference.
 //! - [`rig`]: the rig description: control rate, scanner geometry and calibration, sensor.
 //! - [`settings`]: controller files, discretised and checked for stability on load.
 //! - [`scan_controller`]: the per-period controller the loop calls (rad in, coil A out).
@@ -44,4 +46,5 @@ pub mod run;
 pub mod scan_controller;
 pub mod settings;
 pub mod sos;
+pub mod steady_state;
 pub mod trajectory;

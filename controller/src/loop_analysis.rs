@@ -127,6 +127,12 @@ impl NominalLoop {
         }
     }
 
+    /// The sampling period, s.
+    #[must_use]
+    pub fn period_s(&self) -> f64 {
+        self.period_s
+    }
+
     /// The loop gain `L = C P` at `f_hz`.
     #[must_use]
     pub fn loop_gain(&self, f_hz: f64) -> Complex<f64> {

@@ -113,6 +113,29 @@ fn triangle(f_hz: f64, t_s: f64) -> f64 {
     }
 }
 
+/// One line of a periodic reference's spectrum on one axis.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Harmonic {
+    /// Frequency, Hz.
+    pub frequency_hz: f64,
+    /// Amplitude, rad.
+    pub amplitude_rad: f64,
+}
+
+/// The odd harmonics of a triangle of amplitude `amplitude_rad` and frequency `f_hz` below
+/// `max_hz`: `8 A / (pi^2 n^2)` at `n f` (the phases do not matter to a power sum).
+fn triangle_harmonics(f_hz: f64, amplitude_rad: f64, max_hz: f64) -> Vec<Harmonic> {
+    (1..)
+        .step_by(2)
+        .map(|n| n as f64)
+        .take_while(|n| n * f_hz < max_hz)
+        .map(|n| Harmonic {
+            frequency_hz: n * f_hz,
+            amplitude_rad: 8.0 * amplitude_rad / (PI * PI * n * n),
+        })
+        .collect()
+}
+
 /// Figures derived from a trajectory's definition.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct TrajectoryFigures {
@@ -243,6 +266,100 @@ impl Trajectory {
                 axis.pair(
                     amplitude_rad * swept_sine_phase(start_hz, stop_hz, duration_s, t_s).sin(),
                 )
+            }
+        }
+    }
+
+    /// The steady-state line spectrum of the reference on `axis`, lines below `max_hz` (the
+    /// loop's Nyquist frequency): one line for a sine, the odd harmonics for a triangle, none
+    /// for an axis at rest. `None` for references that are not periodic (a step, a sweep).
+    #[must_use]
+    pub fn harmonics(&self, axis: SensingAxis, max_hz: f64) -> Option<Vec<Harmonic>> {
+        let sine = |frequency_hz: f64, amplitude_rad: f64| {
+            (frequency_hz < max_hz && amplitude_rad != 0.0)
+                .then_some(Harmonic {
+                    frequency_hz,
+                    amplitude_rad,
+                })
+                .into_iter()
+                .collect()
+        };
+        match *self {
+            Trajectory::Lissajous {
+                alpha_hz,
+                beta_hz,
+                alpha_amplitude_rad,
+                beta_amplitude_rad,
+                ..
+            } => Some(match axis {
+                SensingAxis::Alpha => sine(alpha_hz, alpha_amplitude_rad),
+                SensingAxis::Beta => sine(beta_hz, beta_amplitude_rad),
+            }),
+            Trajectory::Raster {
+                slow_hz,
+                fast_hz,
+                slow_axis,
+                alpha_amplitude_rad,
+                beta_amplitude_rad,
+            } => {
+                let f_hz = if axis == slow_axis { slow_hz } else { fast_hz };
+                let amplitude_rad = match axis {
+                    SensingAxis::Alpha => alpha_amplitude_rad,
+                    SensingAxis::Beta => beta_amplitude_rad,
+                };
+                Some(triangle_harmonics(f_hz, amplitude_rad, max_hz))
+            }
+            Trajectory::Sine {
+                axis: driven,
+                frequency_hz,
+                amplitude_rad,
+            } => Some(if driven == axis {
+                sine(frequency_hz, amplitude_rad)
+            } else {
+                Vec::new()
+            }),
+            Trajectory::Step { .. } | Trajectory::SweptSine { .. } => None,
+        }
+    }
+
+    /// The largest |reference| on `axis`, rad.
+    #[must_use]
+    pub fn peak_rad(&self, axis: SensingAxis) -> f64 {
+        let pick = |alpha: f64, beta: f64| match axis {
+            SensingAxis::Alpha => alpha.abs(),
+            SensingAxis::Beta => beta.abs(),
+        };
+        match *self {
+            Trajectory::Lissajous {
+                alpha_amplitude_rad,
+                beta_amplitude_rad,
+                ..
+            }
+            | Trajectory::Raster {
+                alpha_amplitude_rad,
+                beta_amplitude_rad,
+                ..
+            } => pick(alpha_amplitude_rad, beta_amplitude_rad),
+            Trajectory::Step {
+                axis: driven,
+                amplitude_rad,
+                ..
+            }
+            | Trajectory::Sine {
+                axis: driven,
+                amplitude_rad,
+                ..
+            }
+            | Trajectory::SweptSine {
+                axis: driven,
+                amplitude_rad,
+                ..
+            } => {
+                if driven == axis {
+                    amplitude_rad.abs()
+                } else {
+                    0.0
+                }
             }
         }
     }
