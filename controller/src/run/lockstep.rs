@@ -9,12 +9,14 @@ use scanhil_protocol::can::CanFrame;
 pub use super::host_loop::LoopRecord;
 use super::host_loop::{Heard, HostAction, HostLoop};
 use super::mirror_link::{LoopError, MirrorLink};
+use super::power_backoff::PowerBackoff;
 use super::progress::Progress;
 use super::sensor_link::SensorLink;
 use crate::scan_controller::ScanController;
 use crate::trajectory::Trajectory;
 
-/// Runs `periods` lockstep periods, then ends the run with the node. A link error stops the
+/// Runs `periods` lockstep periods (the reference backed off by `backoff` on the node's power
+/// limit), then ends the run with the node. A link error stops the
 /// loop (after commanding zero where the link still allows it) and is returned inside the
 /// record, so what was recorded stays.
 pub async fn run(
@@ -24,8 +26,10 @@ pub async fn run(
     trajectory: &Trajectory,
     periods: u64,
     progress: &Progress,
+    backoff: PowerBackoff,
 ) -> LoopRecord {
-    let mut host = HostLoop::new(controller, trajectory, periods, mirror.take_inbox());
+    let mut host =
+        HostLoop::new(controller, trajectory, periods, mirror.take_inbox()).with_backoff(backoff);
     let allowance = mirror.total_allowance();
     let mut deadline = tokio::time::Instant::now() + allowance;
     loop {

@@ -17,6 +17,8 @@
 //! - [`tracking`]: reference against measured angles.
 //! - [`output`]: report.json, PLY, height map, plots.
 //! - [`progress`]: the progress bar (terminal only).
+//! - [`power_guard`], [`power_backoff`]: the coil power check before a run (shrink, refuse)
+//!   and the back-off when the node's power limit acts.
 //! - [`conformance`]: checks of a mirror node and a sensor against the loop protocol.
 //! - [`plant_link`]: [`crate::link::PlantLink`] over a real mirror link, for `scanhil identify`.
 
@@ -30,6 +32,8 @@ pub mod mirror_link;
 pub mod output;
 pub mod pairing;
 pub mod plant_link;
+pub mod power_backoff;
+pub mod power_guard;
 pub mod progress;
 pub mod realtime;
 pub mod scenario;
@@ -122,6 +126,8 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         scenario.links.spawn_emulator = false;
     }
     let mut controller = scenario.build_controller()?;
+    let guarded = power_guard::guard(&scenario, &controller)?;
+    scenario.trajectory = guarded.trajectory.clone();
     let rig = &scenario.rig;
     let period_s = controller.period_s();
     let sensor_rate_hz = rig.sensor.map(|sensor| sensor.measuring_rate_hz);
@@ -161,6 +167,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
                     &scenario.trajectory,
                     periods,
                     &progress,
+                    guarded.backoff.clone(),
                 )
                 .await
             }
@@ -199,6 +206,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             sensor: links.sensor.snapshot(),
             emulator_summary,
             run_time_s: started.elapsed().as_secs_f64(),
+            power: guarded.check.clone(),
         })
     })?;
     let declared = sensor_rate_hz

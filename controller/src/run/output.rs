@@ -22,6 +22,7 @@ use super::ScanEnd;
 use super::lockstep::LoopRecord;
 use super::mirror_link::{MirrorLinkCounters, NodeEvent};
 use super::pairing::{CounterUnwrapper, SensorClock};
+use super::power_guard::PowerCheck;
 use super::scenario::Scenario;
 use super::sensor_link::{CountedSample, ILD_COUNTER_MODULUS, SensorCounters};
 use crate::imaging::grid::GridMethod;
@@ -56,6 +57,8 @@ pub struct RunData {
     /// Wall-clock time from opening the links (or starting the in-process loop) to the end
     /// of the loop, s.
     pub run_time_s: f64,
+    /// The power check before the run (None: not estimated).
+    pub power: Option<PowerCheck>,
 }
 
 /// Images the run with the one imaging pipeline (the rig's geometry and calibration) and
@@ -193,6 +196,7 @@ pub fn write(
             "emulator": run.emulator_summary.as_ref().map(|e| e["summary"]["timing"].clone()),
         },
         "tracking_error": record.tracking.summary(),
+        "power": { "check": run.power, "backoff": record.power_backoff },
         "trajectory": figures,
         "samples": {
             "sensor_samples": counted.len(),
