@@ -267,7 +267,6 @@ pub fn shrink_factor(estimate_w: f64, budget_w: f64) -> f64 {
 
 /// The ideal tracking effort `1 / G(j 2 pi f)` of eq. 4 (T = 1), A per rad, for checks and
 /// studies without a controller.
-#[must_use]
 pub fn ideal_effort(plant: &crate::plant_model::PlantModel) -> impl Fn(f64) -> Complex<f64> + '_ {
     move |f_hz| {
         let g = plant.section().eval(Complex::new(0.0, TAU * f_hz));

@@ -11,9 +11,10 @@
 //! `R (I^2/2 + I^2/2) = R I^2`, and `R = 30 W / I^2` (2.0172 ohm per actuator axis).
 //!
 //! The earlier reading, one full-range sine on one axis at 30 W mean (`R = 2 * 30 W / I^2`,
-//! 4.034 ohm), leaves the paper's own scans over the limit: the 52/27 Hz Lissajous with the
-//! cross-talk compensated needs 31.2 W and the 2/34 Hz raster under the PID about 38 W. Under
-//! this reading they need 15.6 W and 19 W (`docs/paper-readings.md`).
+//! 4.034 ohm), leaves the paper's own scans over the limit: the host's estimate puts the
+//! 52/27 Hz Lissajous under the dual-tone (cross-talk compensated) at 30.3 W and the 2/34 Hz
+//! raster under the PID at 47.1 W. Under this reading they need 15.1 W and 23.6 W
+//! (`docs/paper-readings.md`).
 //!
 //! The limit is on the mean power over a sliding rectangular thermal window (default 1 s, an
 //! integer number of power cycles for 27 Hz and 52 Hz drives), computed from the coil currents

@@ -40,7 +40,8 @@ const POWER_SCENE: &str = r#"{"name": "p", "parts": ["axes", "power_limit"],
     "power_limit": {"limit_w": 30.0, "window_s": 1.0, "on_exceed": "ON_EXCEED"}}"#;
 
 #[test]
-fn full_range_sines_at_52_hz_on_both_axes_dissipate_exactly_30_w_and_reach_one_and_a_half_degrees() {
+fn full_range_sines_at_52_hz_on_both_axes_dissipate_exactly_30_w_and_reach_one_and_a_half_degrees()
+{
     let s = scene(&POWER_SCENE.replace("ON_EXCEED", "clamp"));
     let mut plant = Plant::from_scene(&s).unwrap();
     assert!(

@@ -151,8 +151,8 @@ fn backoff_run(backoff: bool, duration_s: f64) -> BackoffRun {
     let record = &outcome.run.record;
     let period_s = record.angles.period_s();
     let band = |from_s: f64, to_s: f64| {
-        let readings = &record.angles.readings_rad()
-            [(from_s / period_s) as usize..(to_s / period_s) as usize];
+        let readings =
+            &record.angles.readings_rad()[(from_s / period_s) as usize..(to_s / period_s) as usize];
         let alpha: Vec<f64> = readings.iter().map(|a| a.alpha).collect();
         // The 22-23 Hz band in 0.1 Hz steps (the mirror's mode sits at 22.4 Hz).
         (220..=230)
