@@ -1,5 +1,5 @@
 //! The host's lockstep loop as a state machine, free of I/O and clocks (as
-//! [`scanhil_emulator::serve::mirror_node`] is for the node). It holds the controller, the
+//! `scanhil_emulator::serve::mirror_node` is for the node). It holds the controller, the
 //! trajectory and the [`LoopRecord`]; a transport asks it for the [`HostAction`] to take,
 //! sends the frames it gives (each stamped with its loop time), hands it the frames that
 //! arrive and reports a link that failed or stayed silent.
