@@ -19,6 +19,8 @@
 //! - [`steady_state`]: the steady-state tracking error the nominal loop predicts for a
 //!   periodic reference.
 //! - [`rig`]: the rig description: control rate, scanner geometry and calibration, sensor.
+//! - [`power_budget`]: a trajectory's steady-state mean coil power from the plant model, the
+//!   nominal loop and the rig's coils.
 //! - [`settings`]: controller files, discretised and checked for stability on load.
 //! - [`scan_controller`]: the per-period controller the loop calls (rad in, coil A out).
 //! - [`link`]: the [`link::PlantLink`] trait and the in-process nominal plant.
@@ -41,6 +43,7 @@ pub mod link;
 pub mod loop_analysis;
 pub mod pid;
 pub mod plant_model;
+pub mod power_budget;
 pub mod rig;
 pub mod run;
 pub mod scan_controller;

@@ -139,6 +139,14 @@ impl NominalLoop {
         self.controller.response(f_hz, self.period_s) * self.plant.response(f_hz, self.period_s)
     }
 
+    /// The control effort `C / (1 + L) = T / P` at `f_hz`: the plant input (input units) per
+    /// output unit of reference, what the coils carry while the loop tracks.
+    #[must_use]
+    pub fn control_effort(&self, f_hz: f64) -> Complex<f64> {
+        let c = self.controller.response(f_hz, self.period_s);
+        c / (c * self.plant.response(f_hz, self.period_s) + 1.0)
+    }
+
     /// The complementary sensitivity `T = L / (1 + L)` at `f_hz`.
     #[must_use]
     pub fn complementary(&self, f_hz: f64) -> Complex<f64> {

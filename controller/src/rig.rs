@@ -4,7 +4,9 @@
 //! - `control_rate_hz`: the loop rate the mirror node runs at;
 //! - `scanner`: the mechanical setup (paper eq. 1-3's `y_FSM`, `z_FSM`, `alpha` and the
 //!   receiver) and the calibration of the angle sensor and the distance;
-//! - `sensor`: the ILD 2300's measuring rate and range, or `null` for a mirror-only rig.
+//! - `sensor`: the ILD 2300's measuring rate and range, or `null` for a mirror-only rig;
+//! - `mirror` (optional): the coils' resistance, the power limit and the cross-talk, from which
+//!   the host estimates a trajectory's coil power before a run ([`crate::power_budget`]).
 //!
 //! A scan of real devices needs only this file (and a scenario naming it); an emulator's scene
 //! file is for the emulator alone. When the host starts the emulator it checks the emulated
@@ -35,6 +37,67 @@ pub struct Rig {
     pub scanner: RigScanner,
     /// The distance sensor, if the rig has one.
     pub sensor: Option<RigSensor>,
+    /// The mirror's coils and power limit, if known (without them no power estimate).
+    pub mirror: Option<RigMirror>,
+}
+
+/// The mirror's coils as the host's power estimate needs them (the dynamics are eq. 4, the
+/// controller file's nominal plant).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RigMirror {
+    /// Resistance of one coil (actuator) axis, ohm; both axes are alike.
+    pub coil_resistance_ohm: f64,
+    /// The limit on the coils' mean power (both axes together), W.
+    pub power_limit_w: f64,
+    /// The cross-talk on the sensing axes' inputs (0 = none).
+    #[serde(default)]
+    pub cross_talk: RigCrossTalk,
+}
+
+/// Cross-talk between the sensing axes' inputs: the mirror's alpha axis receives
+/// `u_alpha + alpha_from_beta * u_beta`, beta `u_beta + beta_from_alpha * u_alpha`.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RigCrossTalk {
+    /// Share of beta's input that acts on alpha.
+    pub alpha_from_beta: f64,
+    /// Share of alpha's input that acts on beta.
+    pub beta_from_alpha: f64,
+}
+
+impl RigMirror {
+    /// The paper's mirror: R = 30 W / (10 / |G(j 2 pi 52)|)^2 = 2.0172 ohm (full-range 52 Hz
+    /// sines on both sensing axes at 30 W), 30 W, cross-talk 0.1 (-20 dB) both ways.
+    pub const PAPER: RigMirror = RigMirror {
+        coil_resistance_ohm: 2.0172,
+        power_limit_w: 30.0,
+        cross_talk: RigCrossTalk {
+            alpha_from_beta: 0.1,
+            beta_from_alpha: 0.1,
+        },
+    };
+
+    fn check(&self) -> Result<(), (&'static str, String)> {
+        for (field, value) in [
+            ("mirror.coil_resistance_ohm", self.coil_resistance_ohm),
+            ("mirror.power_limit_w", self.power_limit_w),
+        ] {
+            if !(value.is_finite() && value > 0.0) {
+                return Err((field, format!("{value} must be positive and finite")));
+            }
+        }
+        let c = self.cross_talk;
+        for (field, value) in [
+            ("mirror.cross_talk.alpha_from_beta", c.alpha_from_beta),
+            ("mirror.cross_talk.beta_from_alpha", c.beta_from_alpha),
+        ] {
+            if !(value.is_finite() && value.abs() < 1.0) {
+                return Err((field, format!("{value} must be finite and within (-1, 1)")));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The scanner's geometry and calibration.
@@ -197,6 +260,8 @@ struct RigFile {
     /// Required, `null` for none: a forgotten sensor section is an error, not "no sensor".
     #[serde(deserialize_with = "Option::deserialize")]
     sensor: Option<RigSensor>,
+    #[serde(default)]
+    mirror: Option<RigMirror>,
 }
 
 impl Rig {
@@ -243,6 +308,9 @@ impl Rig {
         if let Some(sensor) = &file.sensor {
             check_sensor(sensor).map_err(invalid)?;
         }
+        if let Some(mirror) = &file.mirror {
+            mirror.check().map_err(invalid)?;
+        }
         Ok(Rig {
             path: origin.to_owned(),
             name: file.name,
@@ -250,6 +318,7 @@ impl Rig {
             control_rate_hz: rate,
             scanner: file.scanner,
             sensor: file.sensor,
+            mirror: file.mirror,
         })
     }
 
@@ -268,6 +337,7 @@ impl Rig {
             "control_rate_hz": self.control_rate_hz,
             "scanner": self.scanner,
             "sensor": self.sensor,
+            "mirror": self.mirror,
         })
     }
 }
@@ -316,8 +386,10 @@ mod tests {
         assert_eq!(paper.sensor, Some(RigSensor::ILD2300_100_AT_20_KHZ));
         assert_eq!(paper.scanner.setup, ScannerSetup::default());
         assert!((paper.period_s() - 50e-6).abs() < 1e-15);
+        assert_eq!(paper.mirror, Some(RigMirror::PAPER));
         let mirror_only = Rig::load(&dir.join("paper-mirror-only.json")).unwrap();
         assert_eq!(mirror_only.sensor, None);
+        assert_eq!(mirror_only.mirror, Some(RigMirror::PAPER));
     }
 
     #[test]
@@ -348,6 +420,22 @@ mod tests {
                 r#"{"name": "r", "control_rate_hz": 1000, "sensor": null,
                     "scanner": {"setup": {"y_fsm_mm": -5}}}"#,
                 "scanner.setup",
+            ),
+            (
+                r#"{"name": "r", "control_rate_hz": 1000, "sensor": null,
+                    "mirror": {"coil_resistance_ohm": -2.0, "power_limit_w": 30}}"#,
+                "mirror.coil_resistance_ohm",
+            ),
+            (
+                r#"{"name": "r", "control_rate_hz": 1000, "sensor": null,
+                    "mirror": {"coil_resistance_ohm": 2.0, "power_limit_w": 0}}"#,
+                "mirror.power_limit_w",
+            ),
+            (
+                r#"{"name": "r", "control_rate_hz": 1000, "sensor": null,
+                    "mirror": {"coil_resistance_ohm": 2.0, "power_limit_w": 30,
+                               "cross_talk": {"alpha_from_beta": 1.5}}}"#,
+                "mirror.cross_talk.alpha_from_beta",
             ),
         ] {
             let error = parse(text).unwrap_err().to_string();

@@ -212,6 +212,32 @@ fn centre_spacing(f_hz: f64, phase_rad: f64, period_s: f64, other: impl Fn(f64) 
 }
 
 impl Trajectory {
+    /// The same trajectory with every amplitude multiplied by `factor` (frequencies, phases
+    /// and timing unchanged): what the power budget's `shrink` runs.
+    #[must_use]
+    pub fn scaled(&self, factor: f64) -> Trajectory {
+        let mut scaled = self.clone();
+        match &mut scaled {
+            Trajectory::Lissajous {
+                alpha_amplitude_rad,
+                beta_amplitude_rad,
+                ..
+            }
+            | Trajectory::Raster {
+                alpha_amplitude_rad,
+                beta_amplitude_rad,
+                ..
+            } => {
+                *alpha_amplitude_rad *= factor;
+                *beta_amplitude_rad *= factor;
+            }
+            Trajectory::Step { amplitude_rad, .. }
+            | Trajectory::Sine { amplitude_rad, .. }
+            | Trajectory::SweptSine { amplitude_rad, .. } => *amplitude_rad *= factor,
+        }
+        scaled
+    }
+
     /// The reference mirror angles at `t_s`, rad.
     #[must_use]
     pub fn reference_rad(&self, t_s: f64) -> SensingPair {
@@ -438,5 +464,40 @@ impl Trajectory {
             };
         }
         fig
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn scaled_multiplies_every_amplitude_and_nothing_else() {
+        let raster = Trajectory::Raster {
+            slow_hz: 2.0,
+            fast_hz: 34.0,
+            slow_axis: SensingAxis::Beta,
+            alpha_amplitude_rad: 0.02,
+            beta_amplitude_rad: 0.01,
+        };
+        let half = raster.scaled(0.5);
+        for t_s in [0.0, 0.013, 0.2, 0.377] {
+            let (a, b) = (raster.reference_rad(t_s), half.reference_rad(t_s));
+            assert!((b.alpha - 0.5 * a.alpha).abs() < 1e-15);
+            assert!((b.beta - 0.5 * a.beta).abs() < 1e-15);
+        }
+        let sine = Trajectory::Sine {
+            axis: SensingAxis::Beta,
+            frequency_hz: 60.0,
+            amplitude_rad: 0.02,
+        };
+        assert_eq!(
+            sine.scaled(0.25),
+            Trajectory::Sine {
+                axis: SensingAxis::Beta,
+                frequency_hz: 60.0,
+                amplitude_rad: 0.005,
+            }
+        );
     }
 }

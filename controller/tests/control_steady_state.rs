@@ -152,11 +152,24 @@ fn the_dual_tone_with_tones_on_the_drive_leaves_almost_no_error_and_table_i_some
     ] {
         let (exact, printed) = (exact.unwrap(), printed.unwrap());
         assert!(exact < 0.01, "exact tones: {exact}");
-        assert!(printed > 3.0 * exact, "Table I {printed} against exact {exact}");
+        assert!(
+            printed > 3.0 * exact,
+            "Table I {printed} against exact {exact}"
+        );
     }
     let measured_exact = measured(&exact, &trajectory, 6.0, 1.0);
-    assert_close(measured_exact.alpha_rms_relative, exact_p.alpha_rms_relative, 0.02, "alpha");
-    assert_close(measured_exact.beta_rms_relative, exact_p.beta_rms_relative, 0.02, "beta");
+    assert_close(
+        measured_exact.alpha_rms_relative,
+        exact_p.alpha_rms_relative,
+        0.02,
+        "alpha",
+    );
+    assert_close(
+        measured_exact.beta_rms_relative,
+        exact_p.beta_rms_relative,
+        0.02,
+        "beta",
+    );
     // Table I after its slow transient (slowest pole |z| = 0.999917: 0.6 s) is as predicted.
     let measured = measured(&printed, &trajectory, 6.0, 1.0);
     assert_close(

@@ -18,8 +18,8 @@ fn scene_err(json: &str) -> SceneError {
     Scene::from_json_str(json, Path::new("bad.json")).unwrap_err()
 }
 
-/// Drives a 52 Hz sine of `amplitude_a` on the alpha sensing axis for `periods`; returns the
-/// plant steps.
+/// Drives a 52 Hz sine of `amplitude_a` on both sensing axes at once (in phase) for
+/// `periods`; returns the plant steps.
 fn sine_52_hz(
     plant: &mut Plant,
     amplitude_a: f64,
@@ -30,10 +30,7 @@ fn sine_52_hz(
         .map(|k| {
             let i = amplitude_a * (std::f64::consts::TAU * 52.0 * k as f64 * ta).sin();
             plant
-                .step(actuator_from_sensing(SensingPair {
-                    alpha: i,
-                    beta: 0.0,
-                }))
+                .step(actuator_from_sensing(SensingPair { alpha: i, beta: i }))
                 .unwrap()
         })
         .collect()
@@ -43,7 +40,8 @@ const POWER_SCENE: &str = r#"{"name": "p", "parts": ["axes", "power_limit"],
     "power_limit": {"limit_w": 30.0, "window_s": 1.0, "on_exceed": "ON_EXCEED"}}"#;
 
 #[test]
-fn full_range_sine_at_52_hz_dissipates_exactly_30_w_and_reaches_one_and_a_half_degrees() {
+fn full_range_sines_at_52_hz_on_both_axes_dissipate_exactly_30_w_and_reach_one_and_a_half_degrees()
+{
     let s = scene(&POWER_SCENE.replace("ON_EXCEED", "clamp"));
     let mut plant = Plant::from_scene(&s).unwrap();
     assert!(

@@ -20,6 +20,7 @@ use scanhil_controller::run::host_inbox::HostInbox;
 use scanhil_controller::run::host_loop::{HostAction, HostLoop, LoopError};
 use scanhil_controller::run::output::{self, RunData};
 use scanhil_controller::run::pairing::SensorClock;
+use scanhil_controller::run::power_guard;
 use scanhil_controller::run::scenario::{NodeLink, Scenario, TimingMode};
 use scanhil_controller::run::sensor_link::IldSampleDecoder;
 use scanhil_controller::run::sensor_setup::SensorSetupReport;
@@ -82,6 +83,13 @@ pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProc
     };
     let started = std::time::Instant::now();
     let mut controller = scenario.build_controller()?;
+    let guarded = power_guard::guard(scenario, &controller)?;
+    // What runs (and is reported) is the guarded trajectory.
+    let guarded_scenario = Scenario {
+        trajectory: guarded.trajectory.clone(),
+        ..scenario.clone()
+    };
+    let scenario = &guarded_scenario;
     let (scene, plant) = load_plant(scene_path, Some(scenario.seed))?;
     let period_s = controller.period_s();
     let rig_sensor_hz = scenario.rig.sensor.map(|sensor| sensor.measuring_rate_hz);
@@ -112,10 +120,11 @@ pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProc
     let mut lockstep_node = LockstepNode::new(&mut node, DEFAULT_HEARTBEAT_HZ);
     let mut host = HostLoop::new(
         &mut controller,
-        &scenario.trajectory,
+        &guarded.trajectory,
         periods,
         HostInbox::new(LINK_NAME),
-    );
+    )
+    .with_backoff(guarded.backoff.clone());
     loop {
         match host.next_action() {
             HostAction::Done => break,
@@ -185,6 +194,7 @@ pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProc
                          no ASCII line to configure it over"
                     .into(),
             }),
+            power: guarded.check.clone(),
         },
         sensor_clock,
         end,

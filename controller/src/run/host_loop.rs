@@ -1,5 +1,5 @@
 //! The host's lockstep loop as a state machine, free of I/O and clocks (as
-//! [`scanhil_emulator::serve::mirror_node`] is for the node). It holds the controller, the
+//! `scanhil_emulator::serve::mirror_node` is for the node). It holds the controller, the
 //! trajectory and the [`LoopRecord`]; a transport asks it for the [`HostAction`] to take,
 //! sends the frames it gives (each stamped with its loop time), hands it the frames that
 //! arrive and reports a link that failed or stayed silent.
@@ -23,6 +23,7 @@ use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
 use super::host_inbox::HostInbox;
 use super::pairing::AngleTrack;
+use super::power_backoff::{BackoffLog, PowerBackoff};
 use super::realtime::ControllerTiming;
 use super::tracking::TrackingRecorder;
 use crate::scan_controller::ScanController;
@@ -91,6 +92,8 @@ pub struct LoopRecord {
     /// Real time only: the instant of loop time 0 as seen here (the earliest reading's
     /// arrival minus its loop time), to place a real sensor's samples on the loop's time axis.
     pub loop_epoch: Option<tokio::time::Instant>,
+    /// What the power back-off did (None: not active).
+    pub power_backoff: Option<BackoffLog>,
 }
 
 impl LoopRecord {
@@ -106,15 +109,32 @@ impl LoopRecord {
             stopped_by: None,
             controller_timing: None,
             loop_epoch: None,
+            power_backoff: None,
         }
     }
 
     /// Records reading `k` (the angles at loop time `(k + 1) * period`) against the reference
     /// at that instant.
     pub fn push_reading(&mut self, trajectory: &Trajectory, k: u64, angles: SensingPair) {
+        self.push_scaled_reading(trajectory, 1.0, k, angles);
+    }
+
+    /// [`Self::push_reading`] against the reference scaled by `scale` (the power back-off's).
+    pub fn push_scaled_reading(
+        &mut self,
+        trajectory: &Trajectory,
+        scale: f64,
+        k: u64,
+        angles: SensingPair,
+    ) {
         let t_s = (k + 1) as f64 * self.angles.period_s();
+        let reference = trajectory.reference_rad(t_s);
+        let reference = SensingPair {
+            alpha: reference.alpha * scale,
+            beta: reference.beta * scale,
+        };
         self.angles.push(angles);
-        self.tracking.record(trajectory.reference_rad(t_s), angles);
+        self.tracking.record(reference, angles);
         self.periods_done = k + 1;
     }
 }
@@ -190,6 +210,7 @@ pub struct HostLoop<'a> {
     record: LoopRecord,
     measured: SensingPair,
     phase: Phase,
+    backoff: PowerBackoff,
 }
 
 impl<'a> HostLoop<'a> {
@@ -210,7 +231,15 @@ impl<'a> HostLoop<'a> {
             record: LoopRecord::new(period_s, periods),
             measured: SensingPair::default(),
             phase: Phase::Start(0),
+            backoff: PowerBackoff::inactive(),
         }
+    }
+
+    /// The same loop, backing off the reference when the node reports its power limit.
+    #[must_use]
+    pub fn with_backoff(mut self, backoff: PowerBackoff) -> HostLoop<'a> {
+        self.backoff = backoff;
+        self
     }
 
     /// What to do next. Frames returned in [`HostAction::Send`] count as sent.
@@ -221,7 +250,12 @@ impl<'a> HostLoop<'a> {
                 self.next_action()
             }
             Phase::Start(k) => {
+                let scale = self.backoff.scale_at(k);
                 let reference = self.trajectory.reference_rad(k as f64 * self.period_s);
+                let reference = SensingPair {
+                    alpha: reference.alpha * scale,
+                    beta: reference.beta * scale,
+                };
                 let command = self.controller.step(reference, self.measured);
                 match period_frames(k, command, self.period_s) {
                     Ok(frames) => {
@@ -269,7 +303,15 @@ impl<'a> HostLoop<'a> {
         match self.phase {
             Phase::Reading(k) => {
                 let t_s = (k + 1) as f64 * self.period_s;
-                match self.inbox.classify(frame, t_s, arrived) {
+                let events = self.inbox.events().len();
+                let classified = self.inbox.classify(frame, t_s, arrived);
+                if self.inbox.events()[events..]
+                    .iter()
+                    .any(|event| event.fault == Some(FaultKind::PowerLimit))
+                {
+                    self.backoff.on_power_limit(k);
+                }
+                match classified {
                     Err(error) => {
                         self.stop(k, error);
                         Heard::Stopped
@@ -280,7 +322,9 @@ impl<'a> HostLoop<'a> {
                             return Heard::Nothing;
                         }
                         self.measured = angles;
-                        self.record.push_reading(self.trajectory, k, angles);
+                        let scale = self.backoff.scale_at(k + 1);
+                        self.record
+                            .push_scaled_reading(self.trajectory, scale, k, angles);
                         self.phase = Phase::Start(k + 1);
                         Heard::Reading(k)
                     }
@@ -347,6 +391,7 @@ impl<'a> HostLoop<'a> {
     #[must_use]
     pub fn finish(mut self) -> (LoopRecord, HostInbox) {
         self.record.saturated_periods = self.controller.saturated_periods();
+        self.record.power_backoff = self.backoff.log();
         (self.record, self.inbox)
     }
 

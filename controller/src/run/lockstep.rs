@@ -12,22 +12,18 @@ use super::interrupt::Interrupt;
 use super::mirror_link::{LoopError, MirrorLink};
 use super::progress::Progress;
 use super::sensor_link::SensorLink;
-use crate::scan_controller::ScanController;
-use crate::trajectory::Trajectory;
 
-/// Runs `periods` lockstep periods, then ends the run with the node. A link error or a
-/// stopping signal stops the loop (after commanding zero where the link still allows it) and
-/// is returned inside the record, so what was recorded stays.
+/// Runs `host`'s lockstep periods over `mirror`, then ends the run with the node. A link
+/// error or a stopping signal stops the loop (after commanding zero where the link still
+/// allows it) and is returned inside the record, so what was recorded stays. The inbox `host`
+/// files frames into goes back to `mirror` at the end.
 pub async fn run(
     mirror: &mut MirrorLink,
     sensor: &mut SensorLink,
-    controller: &mut ScanController,
-    trajectory: &Trajectory,
-    periods: u64,
+    mut host: HostLoop<'_>,
     progress: &Progress,
     interrupt: &mut Interrupt,
 ) -> LoopRecord {
-    let mut host = HostLoop::new(controller, trajectory, periods, mirror.take_inbox());
     let allowance = mirror.total_allowance();
     let mut deadline = tokio::time::Instant::now() + allowance;
     loop {

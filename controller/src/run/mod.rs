@@ -19,6 +19,8 @@
 //! - [`tracking`]: reference against measured angles.
 //! - [`output`]: report.json, PLY, height map, plots.
 //! - [`progress`]: the progress bar (terminal only).
+//! - [`power_guard`], [`power_backoff`]: the coil power check before a run (shrink, refuse)
+//!   and the back-off when the node's power limit acts.
 //! - [`conformance`]: checks of a mirror node and a sensor against the loop protocol.
 //! - [`plant_link`]: [`crate::link::PlantLink`] over a real mirror link, for `scanhil identify`.
 
@@ -33,6 +35,8 @@ pub mod mirror_link;
 pub mod output;
 pub mod pairing;
 pub mod plant_link;
+pub mod power_backoff;
+pub mod power_guard;
 pub mod progress;
 pub mod realtime;
 pub mod scenario;
@@ -50,6 +54,7 @@ use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{CanCapture, CanLink, CaptureClock, PtyPair, VirtualClock};
 
 use emulator_process::{EmulatorProcess, locate_emulator};
+use host_loop::HostLoop;
 use mirror_link::MirrorLink;
 use pairing::SensorClock;
 use scenario::{NodeLink, Scenario, TimingMode};
@@ -126,6 +131,8 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         scenario.links.spawn_emulator = false;
     }
     let mut controller = scenario.build_controller()?;
+    let guarded = power_guard::guard(&scenario, &controller)?;
+    scenario.trajectory = guarded.trajectory.clone();
     let rig = &scenario.rig;
     let period_s = controller.period_s();
     let sensor_rate_hz = rig.sensor.map(|sensor| sensor.measuring_rate_hz);
@@ -160,12 +167,17 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             interrupt::Interrupt::install().context("installing the signal handlers")?;
         let record = match scenario.timing.mode {
             TimingMode::Lockstep => {
-                lockstep::run(
-                    &mut links.mirror,
-                    &mut links.sensor,
+                let host = HostLoop::new(
                     &mut controller,
                     &scenario.trajectory,
                     periods,
+                    links.mirror.take_inbox(),
+                )
+                .with_backoff(guarded.backoff.clone());
+                lockstep::run(
+                    &mut links.mirror,
+                    &mut links.sensor,
+                    host,
                     &progress,
                     &mut interrupt,
                 )
@@ -210,6 +222,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             sensor_setup: links.sensor_setup,
             emulator_summary,
             run_time_s: started.elapsed().as_secs_f64(),
+            power: guarded.check.clone(),
         })
     })?;
     let declared = sensor_rate_hz

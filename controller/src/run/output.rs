@@ -22,6 +22,7 @@ use super::ScanEnd;
 use super::lockstep::LoopRecord;
 use super::mirror_link::{MirrorLinkCounters, NodeEvent};
 use super::pairing::{CounterUnwrapper, SensorClock};
+use super::power_guard::PowerCheck;
 use super::scenario::Scenario;
 use super::sensor_link::{CountedSample, ILD_COUNTER_MODULUS, SensorCounters};
 use crate::imaging::grid::GridMethod;
@@ -58,6 +59,8 @@ pub struct RunData {
     /// Wall-clock time from opening the links (or starting the in-process loop) to the end
     /// of the loop, s.
     pub run_time_s: f64,
+    /// The power check before the run (None: not estimated).
+    pub power: Option<PowerCheck>,
 }
 
 /// Images the run with the one imaging pipeline (the rig's geometry and calibration) and
@@ -196,6 +199,7 @@ pub fn write(
         },
         "tracking_error": record.tracking.summary(),
         "sensor_setup": run.sensor_setup,
+        "power": { "check": run.power, "backoff": record.power_backoff },
         "trajectory": figures,
         "samples": {
             "sensor_samples": counted.len(),

@@ -15,6 +15,7 @@ use std::path::{Path, PathBuf};
 use scanhil_geometry::GeometryModel;
 use serde::Deserialize;
 
+use super::power_guard::PowerConfig;
 use crate::imaging::feature::FeatureParams;
 use crate::imaging::pipeline::MAX_PROGRESSIVE_STEPS;
 use crate::rig::{Rig, RigError};
@@ -51,6 +52,8 @@ pub struct Scenario {
     pub links: LinksConfig,
     /// How the point cloud is gridded and scored.
     pub imaging: ImagingConfig,
+    /// The coil power policy ([`super::power_guard`]).
+    pub power: PowerConfig,
 }
 
 /// How the loop is clocked.
@@ -230,6 +233,8 @@ struct ScenarioFile {
     links: LinksConfig,
     #[serde(default)]
     imaging: ImagingConfig,
+    #[serde(default)]
+    power: PowerConfig,
 }
 
 impl Scenario {
@@ -295,6 +300,9 @@ impl Scenario {
                 format!("{steps} is not between 1 and {MAX_PROGRESSIVE_STEPS}"),
             ));
         }
+        file.power
+            .check()
+            .map_err(|(field, reason)| invalid(field, reason))?;
         let base = origin.parent().unwrap_or(Path::new("."));
         let scene = file.scene.map(|scene| base.join(scene));
         let links_are_emulated = file.links.spawn_emulator
@@ -327,6 +335,7 @@ impl Scenario {
             timing: file.timing,
             links: file.links,
             imaging: file.imaging,
+            power: file.power,
         })
     }
 

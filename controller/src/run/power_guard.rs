@@ -1,0 +1,204 @@
+//! The power check before a run, shared by `scanhil scan` and the in-process loop: the
+//! trajectory's steady-state coil power is estimated from the rig's mirror and the controller's
+//! nominal loop ([`crate::power_budget`]) and the scenario's `power` policy decides:
+//!
+//! - `shrink` (default): amplitudes scaled so the estimate is `margin x limit` (the paper:
+//!   above 52 Hz the range shrinks), said on stderr and in report.json;
+//! - `refuse`: an estimate over `margin x limit` stops the run before any link is opened,
+//!   naming the trajectory, the estimate and the limit;
+//! - `off`: the trajectory runs as written (over the limit the node's clamp acts).
+//!
+//! It also sets up the host's [`PowerBackoff`] for the run (`"backoff": false` turns it off),
+//! with the trajectory's estimate and its current cap (the controller's command limit).
+
+use anyhow::bail;
+use scanhil_protocol::plant_units::AMPS_PER_INPUT_UNIT;
+use serde::{Deserialize, Serialize};
+
+use super::power_backoff::PowerBackoff;
+use super::scenario::Scenario;
+use crate::power_budget::{PowerEstimate, estimate, loop_effort, shrink_factor};
+use crate::scan_controller::ScanController;
+use crate::settings::ControllerSettings;
+use crate::trajectory::Trajectory;
+
+/// What to do with a trajectory whose estimate is over `margin x limit`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PowerPolicy {
+    /// Scale its amplitudes down to fit.
+    #[default]
+    Shrink,
+    /// Refuse to run it.
+    Refuse,
+    /// Run it as written.
+    Off,
+}
+
+/// A scenario's `power` section.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PowerConfig {
+    /// Shrink, refuse or off.
+    pub policy: PowerPolicy,
+    /// The share of the rig's power limit a trajectory may use, in (0, 1].
+    pub margin: f64,
+    /// Back off when the node reports its power limit (lockstep loops).
+    pub backoff: bool,
+}
+
+impl Default for PowerConfig {
+    fn default() -> PowerConfig {
+        PowerConfig {
+            policy: PowerPolicy::Shrink,
+            margin: 0.9,
+            backoff: true,
+        }
+    }
+}
+
+impl PowerConfig {
+    /// Checks the margin; on failure the field and why.
+    ///
+    /// # Errors
+    /// A margin outside (0, 1].
+    pub fn check(&self) -> Result<(), (&'static str, String)> {
+        if self.margin.is_finite() && self.margin > 0.0 && self.margin <= 1.0 {
+            Ok(())
+        } else {
+            Err(("power.margin", format!("{} must be in (0, 1]", self.margin)))
+        }
+    }
+}
+
+/// The check's figures (report.json's `power.check`).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PowerCheck {
+    /// The policy applied.
+    pub policy: PowerPolicy,
+    /// The rig's coil resistance per actuator axis, ohm.
+    pub coil_resistance_ohm: f64,
+    /// The rig's power limit, W.
+    pub limit_w: f64,
+    /// `margin x limit`, W.
+    pub budget_w: f64,
+    /// The trajectory as written.
+    pub before: PowerEstimate,
+    /// The amplitude factor applied (1: unchanged).
+    pub factor: f64,
+    /// The trajectory that runs.
+    pub after: PowerEstimate,
+}
+
+/// The trajectory to run, the check's figures and the back-off for the loop.
+#[derive(Debug, Clone)]
+pub struct Guarded {
+    /// The trajectory the loop follows (scaled under `shrink`).
+    pub trajectory: Trajectory,
+    /// The figures, or None when the rig has no `mirror` section.
+    pub check: Option<PowerCheck>,
+    /// The host's back-off for this run.
+    pub backoff: PowerBackoff,
+}
+
+/// Estimates `scenario`'s trajectory under `controller` and applies its power policy.
+///
+/// # Errors
+/// Under `refuse`, an estimate over `margin x limit` (trajectory, estimate and limit named);
+/// a controller file that does not load.
+pub fn guard(scenario: &Scenario, controller: &ScanController) -> anyhow::Result<Guarded> {
+    let config = scenario.power;
+    let trajectory = scenario.trajectory.clone();
+    let settings = ControllerSettings::load(&scenario.controller)?;
+    let period_s = controller.period_s();
+    let resonance_hz = settings.plant.natural_freq_rad_s / std::f64::consts::TAU;
+    let ramp_periods = PowerBackoff::ramp_periods_for(resonance_hz, period_s);
+    let Some(mirror) = scenario.rig.mirror else {
+        eprintln!(
+            "power: rig {} has no `mirror` section: the coil power of the trajectory is not \
+             estimated",
+            scenario.rig.path.display()
+        );
+        let backoff = if config.backoff {
+            PowerBackoff::new(None, 1.0, config.margin, ramp_periods)
+        } else {
+            PowerBackoff::inactive()
+        };
+        return Ok(Guarded {
+            trajectory,
+            check: None,
+            backoff,
+        });
+    };
+    let nominal = settings.nominal_loop(controller.axis());
+    let effort = loop_effort(&nominal);
+    let nyquist_hz = 0.5 / period_s;
+    let before = estimate(&trajectory, &mirror, &effort, nyquist_hz);
+    let budget_w = config.margin * mirror.power_limit_w;
+    let over = before.mean_power_w > budget_w;
+    let described = describe(&trajectory);
+    let factor = match config.policy {
+        PowerPolicy::Refuse if over => bail!(
+            "{}: trajectory {described} needs an estimated {:.2} W of coil power at steady \
+             state, over {:.2} W ({} x the {} W limit of rig {}); policy `refuse`",
+            scenario.path.display(),
+            before.mean_power_w,
+            budget_w,
+            config.margin,
+            mirror.power_limit_w,
+            scenario.rig.path.display()
+        ),
+        PowerPolicy::Shrink => shrink_factor(before.mean_power_w, budget_w),
+        PowerPolicy::Refuse | PowerPolicy::Off => 1.0,
+    };
+    let trajectory = if factor < 1.0 {
+        trajectory.scaled(factor)
+    } else {
+        trajectory
+    };
+    let after = estimate(&trajectory, &mirror, &effort, nyquist_hz);
+    if factor < 1.0 {
+        eprintln!(
+            "power: trajectory {described} needs an estimated {:.2} W > {:.2} W ({} x {} W): \
+             amplitudes scaled by {factor:.4} to {:.2} W",
+            before.mean_power_w, budget_w, config.margin, mirror.power_limit_w, after.mean_power_w
+        );
+    } else if over {
+        eprintln!(
+            "power: trajectory {described} needs an estimated {:.2} W > {:.2} W ({} x {} W); \
+             policy `off`: it runs as written",
+            before.mean_power_w, budget_w, config.margin, mirror.power_limit_w
+        );
+    }
+    let backoff = if config.backoff {
+        let axis_limit_a = controller.axis().output_limit() * AMPS_PER_INPUT_UNIT;
+        let peak_a = after.alpha_peak_bound_a.max(after.beta_peak_bound_a);
+        PowerBackoff::new(
+            Some(after.mean_power_w),
+            mirror.power_limit_w,
+            config.margin,
+            ramp_periods,
+        )
+        .with_current_cap(config.margin * axis_limit_a / peak_a)
+    } else {
+        PowerBackoff::inactive()
+    };
+    Ok(Guarded {
+        trajectory,
+        check: Some(PowerCheck {
+            policy: config.policy,
+            coil_resistance_ohm: mirror.coil_resistance_ohm,
+            limit_w: mirror.power_limit_w,
+            budget_w,
+            before,
+            factor,
+            after,
+        }),
+        backoff,
+    })
+}
+
+/// The trajectory as its JSON (kind, frequencies, amplitudes).
+fn describe(trajectory: &Trajectory) -> String {
+    serde_json::to_string(trajectory).unwrap_or_else(|_| format!("{trajectory:?}"))
+}
