@@ -1,9 +1,8 @@
 //! The steady-state mean coil power a trajectory needs, estimated before a run from the plant
 //! model, the nominal closed loop and the rig's coils.
 //!
-//! The reference is split into its Fourier content ([`tones`]): a sine is one tone; a triangle
-//! (raster) its odd harmonics `-8 A / (pi^2 n^2) cos(2 pi n f t)` up to Nyquist; a step its DC
-//! value. The loop filters each tone: the plant input per unit of reference is the control
+//! The reference is split into its Fourier content ([`Trajectory::tones`]): a sine is one
+//! tone; a triangle (raster) its odd harmonics up to Nyquist; a step its DC value. The loop filters each tone: the plant input per unit of reference is the control
 //! effort `C / (1 + L) = T / G` of the nominal loop ([`NominalLoop::control_effort`]). The
 //! mirror's cross-talk `M = [1, c_ab; c_ba, 1]` on the sensing inputs is undone by the loop, so
 //! the currents on the sensing axes are `u = M^-1 v`. The 45 degree rotation preserves
@@ -14,32 +13,20 @@
 //! The estimate is linear: the current and power limits, the controller's output limit and
 //! the start-up transient are not in it. Power scales with the square of the amplitude.
 
-use std::f64::consts::{FRAC_1_SQRT_2, PI, TAU};
+use std::f64::consts::{FRAC_1_SQRT_2, TAU};
 
 use nalgebra::Complex;
-use scanhil_protocol::plant_units::{AMPS_PER_INPUT_UNIT, RAD_PER_OUTPUT_UNIT, SensingAxis};
+use scanhil_protocol::plant_units::{AMPS_PER_INPUT_UNIT, RAD_PER_OUTPUT_UNIT};
 
 use crate::loop_analysis::NominalLoop;
 use crate::rig::RigMirror;
-use crate::trajectory::Trajectory;
+use crate::trajectory::{Tone, Trajectory};
 
 /// Below this frequency a tone is evaluated here instead (a controller with an integrator has
 /// no finite response at 0 Hz; its effort there is `1 / G(0)`), Hz.
 const DC_PROBE_HZ: f64 = 1e-4;
 /// Log-spaced frequencies at which a swept sine's band is evaluated.
 const SWEEP_POINTS: usize = 400;
-
-/// One frequency of a reference: `Re(phasor e^(j 2 pi f t))` per sensing axis, rad (for
-/// `f_hz = 0` the phasor is the constant value).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Tone {
-    /// Frequency, Hz (0 for the constant part).
-    pub f_hz: f64,
-    /// The alpha axis' phasor, rad.
-    pub alpha_rad: Complex<f64>,
-    /// The beta axis' phasor, rad.
-    pub beta_rad: Complex<f64>,
-}
 
 /// What a trajectory needs at steady state.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -60,120 +47,6 @@ pub struct PowerEstimate {
     pub tones: usize,
     /// A swept sine's worst frequency, Hz.
     pub worst_hz: Option<f64>,
-}
-
-/// A sine `amplitude sin(2 pi f t + phase)` as a tone on `axis`.
-fn sine_tone(axis: SensingAxis, f_hz: f64, amplitude_rad: f64, phase_rad: f64) -> Tone {
-    // sin(x) = Re(-j e^(jx))
-    let phasor = Complex::from_polar(amplitude_rad, phase_rad) * Complex::new(0.0, -1.0);
-    on_axis(axis, f_hz, phasor)
-}
-
-fn on_axis(axis: SensingAxis, f_hz: f64, phasor: Complex<f64>) -> Tone {
-    let zero = Complex::new(0.0, 0.0);
-    match axis {
-        SensingAxis::Alpha => Tone {
-            f_hz,
-            alpha_rad: phasor,
-            beta_rad: zero,
-        },
-        SensingAxis::Beta => Tone {
-            f_hz,
-            alpha_rad: zero,
-            beta_rad: phasor,
-        },
-    }
-}
-
-/// The odd harmonics below `nyquist_hz` of a triangle between `-amplitude` and `amplitude`
-/// starting at `-amplitude` (the raster's).
-fn triangle_tones(axis: SensingAxis, f_hz: f64, amplitude_rad: f64, nyquist_hz: f64) -> Vec<Tone> {
-    (1u64..)
-        .step_by(2)
-        .map(|n| (n as f64, n as f64 * f_hz))
-        .take_while(|(_, f)| *f < nyquist_hz)
-        .map(|(n, f)| {
-            let c = -8.0 * amplitude_rad / (PI * PI * n * n);
-            on_axis(axis, f, Complex::new(c, 0.0))
-        })
-        .collect()
-}
-
-/// Adds tones of the same frequency together (they add coherently).
-fn merged(mut tones: Vec<Tone>) -> Vec<Tone> {
-    tones.sort_by(|a, b| a.f_hz.total_cmp(&b.f_hz));
-    let mut out: Vec<Tone> = Vec::with_capacity(tones.len());
-    for tone in tones {
-        match out.last_mut() {
-            Some(last) if (last.f_hz - tone.f_hz).abs() <= 1e-9 * tone.f_hz.max(1.0) => {
-                last.alpha_rad += tone.alpha_rad;
-                last.beta_rad += tone.beta_rad;
-            }
-            _ => out.push(tone),
-        }
-    }
-    out
-}
-
-/// The Fourier content of `trajectory` below `nyquist_hz` at steady state, one tone per
-/// frequency. A swept sine gives its start frequency (see [`estimate`] for its band).
-#[must_use]
-pub fn tones(trajectory: &Trajectory, nyquist_hz: f64) -> Vec<Tone> {
-    let tones = match *trajectory {
-        Trajectory::Lissajous {
-            alpha_hz,
-            beta_hz,
-            alpha_amplitude_rad,
-            beta_amplitude_rad,
-            relative_phase_rad,
-        } => vec![
-            sine_tone(SensingAxis::Alpha, alpha_hz, alpha_amplitude_rad, 0.0),
-            sine_tone(
-                SensingAxis::Beta,
-                beta_hz,
-                beta_amplitude_rad,
-                relative_phase_rad,
-            ),
-        ],
-        Trajectory::Raster {
-            slow_hz,
-            fast_hz,
-            slow_axis,
-            alpha_amplitude_rad,
-            beta_amplitude_rad,
-        } => {
-            let amplitude = |axis: SensingAxis| match axis {
-                SensingAxis::Alpha => alpha_amplitude_rad,
-                SensingAxis::Beta => beta_amplitude_rad,
-            };
-            let fast_axis = slow_axis.other();
-            let mut tones = triangle_tones(slow_axis, slow_hz, amplitude(slow_axis), nyquist_hz);
-            tones.extend(triangle_tones(
-                fast_axis,
-                fast_hz,
-                amplitude(fast_axis),
-                nyquist_hz,
-            ));
-            tones
-        }
-        Trajectory::Step {
-            axis,
-            amplitude_rad,
-            ..
-        } => vec![on_axis(axis, 0.0, Complex::new(amplitude_rad, 0.0))],
-        Trajectory::Sine {
-            axis,
-            frequency_hz,
-            amplitude_rad,
-        } => vec![sine_tone(axis, frequency_hz, amplitude_rad, 0.0)],
-        Trajectory::SweptSine {
-            axis,
-            start_hz,
-            amplitude_rad,
-            ..
-        } => vec![sine_tone(axis, start_hz, amplitude_rad, 0.0)],
-    };
-    merged(tones)
 }
 
 /// The coil current (A, sensing-axis input) per rad of reference under `nominal`: the control
@@ -242,7 +115,7 @@ pub fn estimate(
         return (0..SWEEP_POINTS)
             .map(|i| (lo + (hi - lo) * i as f64 / (SWEEP_POINTS - 1) as f64).exp())
             .map(|f_hz| {
-                let tone = sine_tone(axis, f_hz, amplitude_rad, 0.0);
+                let tone = Tone::sine(axis, f_hz, amplitude_rad, 0.0);
                 PowerEstimate {
                     worst_hz: Some(f_hz),
                     ..estimate_tones(&[tone], mirror, effort)
@@ -251,7 +124,7 @@ pub fn estimate(
             .max_by(|a, b| a.mean_power_w.total_cmp(&b.mean_power_w))
             .expect("the sweep grid is not empty");
     }
-    estimate_tones(&tones(trajectory, nyquist_hz), mirror, effort)
+    estimate_tones(&trajectory.tones(nyquist_hz), mirror, effort)
 }
 
 /// The amplitude factor that brings `estimate_w` to `budget_w` (power goes with its square);
@@ -279,7 +152,7 @@ mod tests {
     use super::*;
     use crate::plant_model::PlantModel;
     use crate::rig::RigCrossTalk;
-    use scanhil_protocol::plant_units::FULL_RANGE_DEG;
+    use scanhil_protocol::plant_units::{FULL_RANGE_DEG, SensingAxis};
 
     const R_OHM: f64 = 2.0;
 

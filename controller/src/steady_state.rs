@@ -25,18 +25,21 @@ pub struct PredictedTracking {
 /// The steady-state error of `trajectory` through `nominal` (see the module doc).
 #[must_use]
 pub fn predict(nominal: &NominalLoop, trajectory: &Trajectory) -> PredictedTracking {
-    let nyquist_hz = 0.5 / nominal.period_s();
+    let tones = trajectory.tones(0.5 / nominal.period_s());
     let axis = |axis: SensingAxis| {
         let peak = trajectory.peak_rad(axis);
-        let lines = trajectory.harmonics(axis, nyquist_hz)?;
-        if peak == 0.0 || lines.is_empty() {
+        if !trajectory.is_periodic() || peak == 0.0 {
             return None;
         }
-        let power: f64 = lines
+        let power: f64 = tones
             .iter()
-            .map(|line| {
-                let s = (nominal.loop_gain(line.frequency_hz) + 1.0).inv();
-                s.norm_sqr() * line.amplitude_rad * line.amplitude_rad / 2.0
+            .map(|tone| {
+                let s = (nominal.loop_gain(tone.f_hz) + 1.0).inv();
+                let amplitude = match axis {
+                    SensingAxis::Alpha => tone.alpha_rad,
+                    SensingAxis::Beta => tone.beta_rad,
+                };
+                s.norm_sqr() * amplitude.norm_sqr() / 2.0
             })
             .sum();
         Some(power.sqrt() / peak)

@@ -5,6 +5,7 @@
 //! (27 Hz). Spacings are fractions of the image side along that axis; with a scan range in mm
 //! they are also given in mm.
 
+use nalgebra::Complex;
 pub use scanhil_protocol::plant_units::SensingAxis;
 use scanhil_protocol::plant_units::{FULL_RANGE_DEG, SensingPair};
 use std::f64::consts::{PI, TAU};
@@ -113,27 +114,138 @@ fn triangle(f_hz: f64, t_s: f64) -> f64 {
     }
 }
 
-/// One line of a periodic reference's spectrum on one axis.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub struct Harmonic {
-    /// Frequency, Hz.
-    pub frequency_hz: f64,
-    /// Amplitude, rad.
-    pub amplitude_rad: f64,
+/// One frequency of a reference: `Re(phasor e^(j 2 pi f t))` per sensing axis, rad (for
+/// `f_hz = 0` the phasor is the constant value).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tone {
+    /// Frequency, Hz (0 for the constant part).
+    pub f_hz: f64,
+    /// The alpha axis' phasor, rad.
+    pub alpha_rad: Complex<f64>,
+    /// The beta axis' phasor, rad.
+    pub beta_rad: Complex<f64>,
 }
 
-/// The odd harmonics of a triangle of amplitude `amplitude_rad` and frequency `f_hz` below
-/// `max_hz`: `8 A / (pi^2 n^2)` at `n f` (the phases do not matter to a power sum).
-fn triangle_harmonics(f_hz: f64, amplitude_rad: f64, max_hz: f64) -> Vec<Harmonic> {
-    (1..)
+impl Tone {
+    /// A sine `amplitude sin(2 pi f t + phase)` as a tone on `axis`.
+    #[must_use]
+    pub fn sine(axis: SensingAxis, f_hz: f64, amplitude_rad: f64, phase_rad: f64) -> Tone {
+        // sin(x) = Re(-j e^(jx))
+        let phasor = Complex::from_polar(amplitude_rad, phase_rad) * Complex::new(0.0, -1.0);
+        on_axis(axis, f_hz, phasor)
+    }
+}
+
+fn on_axis(axis: SensingAxis, f_hz: f64, phasor: Complex<f64>) -> Tone {
+    let zero = Complex::new(0.0, 0.0);
+    match axis {
+        SensingAxis::Alpha => Tone {
+            f_hz,
+            alpha_rad: phasor,
+            beta_rad: zero,
+        },
+        SensingAxis::Beta => Tone {
+            f_hz,
+            alpha_rad: zero,
+            beta_rad: phasor,
+        },
+    }
+}
+
+/// The odd harmonics below `nyquist_hz` of a triangle between `-amplitude` and `amplitude`
+/// starting at `-amplitude` (the raster's).
+fn triangle_tones(axis: SensingAxis, f_hz: f64, amplitude_rad: f64, nyquist_hz: f64) -> Vec<Tone> {
+    (1u64..)
         .step_by(2)
-        .map(|n| n as f64)
-        .take_while(|n| n * f_hz < max_hz)
-        .map(|n| Harmonic {
-            frequency_hz: n * f_hz,
-            amplitude_rad: 8.0 * amplitude_rad / (PI * PI * n * n),
+        .map(|n| (n as f64, n as f64 * f_hz))
+        .take_while(|(_, f)| *f < nyquist_hz)
+        .map(|(n, f)| {
+            let c = -8.0 * amplitude_rad / (PI * PI * n * n);
+            on_axis(axis, f, Complex::new(c, 0.0))
         })
         .collect()
+}
+
+/// Adds tones of the same frequency together (they add coherently).
+fn merged(mut tones: Vec<Tone>) -> Vec<Tone> {
+    tones.sort_by(|a, b| a.f_hz.total_cmp(&b.f_hz));
+    let mut out: Vec<Tone> = Vec::with_capacity(tones.len());
+    for tone in tones {
+        match out.last_mut() {
+            Some(last) if (last.f_hz - tone.f_hz).abs() <= 1e-9 * tone.f_hz.max(1.0) => {
+                last.alpha_rad += tone.alpha_rad;
+                last.beta_rad += tone.beta_rad;
+            }
+            _ => out.push(tone),
+        }
+    }
+    out
+}
+
+impl Trajectory {
+    /// The Fourier content of the reference below `nyquist_hz` at steady state, one tone per
+    /// frequency: a sine is one tone; a triangle (raster) its odd harmonics
+    /// `-8 A / (pi^2 n^2) cos(2 pi n f t)`; a step its DC value; a swept sine its start
+    /// frequency (its band: [`crate::power_budget::estimate`]).
+    #[must_use]
+    pub fn tones(&self, nyquist_hz: f64) -> Vec<Tone> {
+        let tones = match *self {
+            Trajectory::Lissajous {
+                alpha_hz,
+                beta_hz,
+                alpha_amplitude_rad,
+                beta_amplitude_rad,
+                relative_phase_rad,
+            } => vec![
+                Tone::sine(SensingAxis::Alpha, alpha_hz, alpha_amplitude_rad, 0.0),
+                Tone::sine(
+                    SensingAxis::Beta,
+                    beta_hz,
+                    beta_amplitude_rad,
+                    relative_phase_rad,
+                ),
+            ],
+            Trajectory::Raster {
+                slow_hz,
+                fast_hz,
+                slow_axis,
+                alpha_amplitude_rad,
+                beta_amplitude_rad,
+            } => {
+                let amplitude = |axis: SensingAxis| match axis {
+                    SensingAxis::Alpha => alpha_amplitude_rad,
+                    SensingAxis::Beta => beta_amplitude_rad,
+                };
+                let fast_axis = slow_axis.other();
+                let mut tones =
+                    triangle_tones(slow_axis, slow_hz, amplitude(slow_axis), nyquist_hz);
+                tones.extend(triangle_tones(
+                    fast_axis,
+                    fast_hz,
+                    amplitude(fast_axis),
+                    nyquist_hz,
+                ));
+                tones
+            }
+            Trajectory::Step {
+                axis,
+                amplitude_rad,
+                ..
+            } => vec![on_axis(axis, 0.0, Complex::new(amplitude_rad, 0.0))],
+            Trajectory::Sine {
+                axis,
+                frequency_hz,
+                amplitude_rad,
+            } => vec![Tone::sine(axis, frequency_hz, amplitude_rad, 0.0)],
+            Trajectory::SweptSine {
+                axis,
+                start_hz,
+                amplitude_rad,
+                ..
+            } => vec![Tone::sine(axis, start_hz, amplitude_rad, 0.0)],
+        };
+        merged(tones)
+    }
 }
 
 /// Figures derived from a trajectory's definition.
@@ -296,56 +408,13 @@ impl Trajectory {
         }
     }
 
-    /// The steady-state line spectrum of the reference on `axis`, lines below `max_hz` (the
-    /// loop's Nyquist frequency): one line for a sine, the odd harmonics for a triangle, none
-    /// for an axis at rest. `None` for references that are not periodic (a step, a sweep).
+    /// Whether the reference is periodic (a steady state exists): Lissajous, raster, sine.
     #[must_use]
-    pub fn harmonics(&self, axis: SensingAxis, max_hz: f64) -> Option<Vec<Harmonic>> {
-        let sine = |frequency_hz: f64, amplitude_rad: f64| {
-            (frequency_hz < max_hz && amplitude_rad != 0.0)
-                .then_some(Harmonic {
-                    frequency_hz,
-                    amplitude_rad,
-                })
-                .into_iter()
-                .collect()
-        };
-        match *self {
-            Trajectory::Lissajous {
-                alpha_hz,
-                beta_hz,
-                alpha_amplitude_rad,
-                beta_amplitude_rad,
-                ..
-            } => Some(match axis {
-                SensingAxis::Alpha => sine(alpha_hz, alpha_amplitude_rad),
-                SensingAxis::Beta => sine(beta_hz, beta_amplitude_rad),
-            }),
-            Trajectory::Raster {
-                slow_hz,
-                fast_hz,
-                slow_axis,
-                alpha_amplitude_rad,
-                beta_amplitude_rad,
-            } => {
-                let f_hz = if axis == slow_axis { slow_hz } else { fast_hz };
-                let amplitude_rad = match axis {
-                    SensingAxis::Alpha => alpha_amplitude_rad,
-                    SensingAxis::Beta => beta_amplitude_rad,
-                };
-                Some(triangle_harmonics(f_hz, amplitude_rad, max_hz))
-            }
-            Trajectory::Sine {
-                axis: driven,
-                frequency_hz,
-                amplitude_rad,
-            } => Some(if driven == axis {
-                sine(frequency_hz, amplitude_rad)
-            } else {
-                Vec::new()
-            }),
-            Trajectory::Step { .. } | Trajectory::SweptSine { .. } => None,
-        }
+    pub fn is_periodic(&self) -> bool {
+        matches!(
+            self,
+            Trajectory::Lissajous { .. } | Trajectory::Raster { .. } | Trajectory::Sine { .. }
+        )
     }
 
     /// The largest |reference| on `axis`, rad.
