@@ -61,7 +61,7 @@ pub const MISSING_RGB: [u8; 3] = [170, 170, 170];
 /// The longer side of a panel's map area when the figure has one panel, px.
 pub const SINGLE_MAP_SIDE_PX: u32 = 640;
 /// The longer side of each panel's map area when the figure has several, px.
-pub const PANEL_MAP_SIDE_PX: u32 = 340;
+pub const PANEL_MAP_SIDE_PX: u32 = 380;
 
 const TITLE_PX: u32 = 44;
 const PANEL_TITLE_PX: u32 = 28;
@@ -298,7 +298,7 @@ fn draw_panel(
         h.saturating_sub(2 * MARGIN_PX + X_LABELS_PX),
     );
     let map_middle_px = MARGIN_PX + Y_LABELS_PX + map_px.0 / 2;
-    centred_text(&title_area, &panel.title, 16, Some(map_middle_px))?;
+    centred_text(&title_area, &panel.title, 14, Some(map_middle_px))?;
     let (x_range, y_range) = layout.ranges_mm(map_px);
     let mut chart = ChartBuilder::on(&chart_area)
         .margin(MARGIN_PX)
@@ -306,7 +306,7 @@ fn draw_panel(
         .y_label_area_size(Y_LABELS_PX)
         .build_cartesian_2d(x_range, y_range)
         .map_err(|e| err(&e))?;
-    let ticks = |px: u32| (px / 70).clamp(3, 10) as usize;
+    let ticks = |px: u32| (px / 35).clamp(5, 12) as usize;
     chart
         .configure_mesh()
         .disable_mesh()

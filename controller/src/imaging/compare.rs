@@ -42,7 +42,7 @@ pub struct ScanFolder {
 pub enum CompareError {
     /// A file the comparison needs is not in the folder.
     #[error(
-        "{}: no {file}: not an output folder of `scanhil scan` or `scanhil reconstruct` with imaging (or written before {file} existed)",
+        "{}: no {file}: not an output folder of `scanhil scan` or `scanhil reconstruct` with imaging, or one written by an older scanhil",
         dir.display()
     )]
     Missing {

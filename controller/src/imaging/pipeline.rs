@@ -340,11 +340,11 @@ pub fn write_outputs(
     let map_range_mm = imaging.map.draw_png(
         &dir.join(HEIGHT_MAP_PNG),
         &format!(
-            "height map ({model} reconstruction, {})",
+            "height map ({model} model, {})",
             match imaging.options.fill {
-                FillMethod::None => "missing cells not filled",
-                FillMethod::Nearest => "missing cells filled: nearest",
-                FillMethod::Diffusion => "missing cells filled: diffusion",
+                FillMethod::None => "not filled",
+                FillMethod::Nearest => "filled: nearest",
+                FillMethod::Diffusion => "filled: diffusion",
             }
         ),
         caption,

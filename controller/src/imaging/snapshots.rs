@@ -108,10 +108,10 @@ pub fn draw_snapshots(
                         let prefix = if label.is_empty() {
                             String::new()
                         } else {
-                            format!("{label}: ")
+                            format!("{label} ")
                         };
                         s.map.panel(format!(
-                            "{prefix}{:.0} % ({:.3} s), {:.0} % of cells",
+                            "{prefix}{:.0} %, {:.3} s: {:.0} % of cells",
                             100.0 * s.fraction,
                             s.t_s,
                             100.0 * s.map.coverage_fraction()
