@@ -474,8 +474,13 @@ fn scanhil_reconstruct_writes_a_readable_map_snapshots_and_profiles_and_compare_
     );
     let single = image::open(outs[0].join("snapshots.png")).unwrap();
     let both = image::open(compared.join("snapshots.png")).unwrap();
-    // Two rows of the same four panels.
-    assert_eq!(both.width(), single.width());
+    // Two rows of four panels (over both grids' extent: the width differs a little).
+    assert!(
+        both.width().abs_diff(single.width()) < single.width() / 10,
+        "{} against {}",
+        both.width(),
+        single.width()
+    );
     assert!(
         both.height() > single.height() * 3 / 2,
         "{:?}",
