@@ -22,9 +22,10 @@ Checks:
    (wall clock vs loop time) and the interface column differ too.
 3. Lockstep determinism across transports:
    - fsm.log of vcan and pty-can are identical byte for byte (same frames, same loop-time stamps);
-   - points.ply, height_map.csv, height_map.png, tracking.svg and progressive.svg are identical byte
-     for byte in all three folders (the point cloud, the height map, the tracking record and the
-     reconstruction error against scan time);
+   - points.ply, height_map.csv/.png, tracking.svg, progressive.svg, snapshots.png and
+     profiles.svg/.csv are identical byte for byte in all three folders (the point cloud, the
+     height map, the tracking record, the reconstruction error against scan time, the snapshots
+     and the sections);
    - report.json is identical in all three, every number compared exactly (JSON floats are written
      shortest-round-trip, so equal numbers are equal bits), except the fields that name or count the
      transport itself: scenario.links (the links asked for), links.sensor (the ILD stream's own
@@ -51,7 +52,16 @@ from pathlib import Path
 import cantools
 from cantools.logreader import Parser
 
-BYTE_IDENTICAL = ["points.ply", "height_map.csv", "height_map.png", "tracking.svg", "progressive.svg"]
+BYTE_IDENTICAL = [
+    "points.ply",
+    "height_map.csv",
+    "height_map.png",
+    "tracking.svg",
+    "progressive.svg",
+    "snapshots.png",
+    "profiles.svg",
+    "profiles.csv",
+]
 # Report fields that describe or count the transport, per compared folder (JSON paths, prefixes).
 TRANSPORT_FIELDS = {
     "pty-can": [("scenario", "links", "fsm"), ("run_time_s",)],

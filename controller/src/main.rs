@@ -25,6 +25,8 @@ enum Command {
     Decode(commands::decode::Args),
     /// Reconstruct a recording of samples: PLY points, height map PNG/CSV, JSON report.
     Reconstruct(commands::reconstruct::Args),
+    /// Draw two scan or reconstruct output folders side by side: snapshots and profiles.
+    Compare(commands::compare::Args),
     /// Analyse a controller file: discrete sections, poles, zeros and the nominal closed loop.
     Analyze(commands::analyze::Args),
     /// Measure a frequency response (open-loop plant or closed loop) with a stepped sine.
@@ -40,6 +42,7 @@ fn main() -> ExitCode {
         Command::Conformance(args) => commands::conformance::run(args),
         Command::Decode(args) => commands::decode::run(args),
         Command::Reconstruct(args) => commands::reconstruct::run(args),
+        Command::Compare(args) => commands::compare::run(args),
         Command::Analyze(args) => commands::analyze::run(args),
         Command::Identify(args) => commands::identify::run(args),
         Command::Trajectory(args) => commands::trajectory::run(args),

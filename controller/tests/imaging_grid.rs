@@ -178,9 +178,12 @@ fn csv_and_png_say_which_cells_are_measured_filled_missing() {
     );
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("map.png");
-    assert_eq!(map.write_png(&path, 3).unwrap(), Some((-130.5, -130.5)));
+    assert_eq!(
+        map.draw_png(&path, "t", "z_s (mm)").unwrap(),
+        Some((-130.5, -130.5))
+    );
     let png = image::open(&path).unwrap().to_rgb8();
-    assert_eq!(png.dimensions(), (6, 3));
+    assert!(png.width() >= 500, "{:?}", png.dimensions());
 }
 
 #[test]
@@ -193,13 +196,21 @@ fn png_shows_plus_y_up() {
     );
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("map.png");
-    map.write_png(&path, 1).unwrap();
+    map.draw_png(&path, "t", "z_s (mm)").unwrap();
     let png = image::open(&path).unwrap().to_rgb8();
-    // The highest value is yellow-ish (high red and green), the lowest dark blue.
-    let top = png.get_pixel(0, 0).0;
-    let bottom = png.get_pixel(0, 1).0;
+    // Down the middle of the map area (left of the colour bar): the highest value,
+    // yellow-ish (high red and green), comes before the lowest, dark blue.
+    let (w, h) = png.dimensions();
+    let x = (w - 190) / 2;
+    let column: Vec<[u8; 3]> = (0..h).map(|y| png.get_pixel(x, y).0).collect();
+    let high = column
+        .iter()
+        .position(|p| p[0] > 200 && p[1] > 200 && p[2] < 100);
+    let low = column
+        .iter()
+        .position(|p| p[0] < 100 && p[1] < 20 && p[2] > 60);
     assert!(
-        top[1] > 200 && bottom[1] < 20,
-        "top {top:?} bottom {bottom:?}"
+        matches!((high, low), (Some(a), Some(b)) if a < b),
+        "high at {high:?}, low at {low:?}"
     );
 }

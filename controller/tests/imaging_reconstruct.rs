@@ -1,19 +1,26 @@
-//! Reconstruction against the geometry's forward model, recordings, the whole pipeline and
-//! the `scanhil reconstruct` command.
+//! Reconstruction against the geometry's forward model, recordings, the whole pipeline, its
+//! figures (snapshots, profiles), and the `scanhil reconstruct` and `scanhil compare`
+//! commands.
 
 mod imaging_support;
 mod reconstruct_command;
 
-use imaging_support::{BASE_Z_MM, FULL_RANGE_RAD, STUD_HEIGHT_MM, lissajous, raster, stud_scene};
+use imaging_support::{
+    BASE_Z_MM, FULL_RANGE_RAD, STUD_HEIGHT_MM, field_centre, lissajous, raster, stud_scene,
+    stud_surface,
+};
 use reconstruct_command::{reconstruct_succeeds, scanhil_reconstruct};
 use scanhil_controller::imaging::feature::FeatureParams;
 use scanhil_controller::imaging::pipeline::{ImagingOptions, image_samples};
 use scanhil_controller::imaging::ply::read_ply_file;
-use scanhil_controller::imaging::progressive::simulate_samples;
+use scanhil_controller::imaging::profiles::{Profiles, Section, sections};
+use scanhil_controller::imaging::progressive::{ScanFrame, simulate_samples};
 use scanhil_controller::imaging::reconstruct::{DEFAULT_MODEL, ScanSample, reconstruct};
 use scanhil_controller::imaging::recording::{parse_recording, write_recording_csv};
+use scanhil_controller::imaging::snapshots::{SNAPSHOT_FRACTIONS, snapshots};
 use scanhil_geometry::{GeometryModel, Scanner};
 use scanhil_protocol::ild::MeasuringRange;
+use scanhil_report::MISSING_RGB;
 
 /// Samples of a flat plane at z = -130 mm seen through `model`'s beam.
 fn plane_samples(model: GeometryModel) -> Vec<ScanSample> {
@@ -280,4 +287,234 @@ fn scanhil_reconstruct_scores_a_recording_against_a_scene_surface() {
         .unwrap();
     assert!(!run.status.success());
     assert!(String::from_utf8_lossy(&run.stderr).contains("loop-fast.json"));
+}
+
+/// Ideal samples of the stud scene (the paper's model on both sides: exact data).
+fn stud_samples(angles: imaging_support::Angles, rate_hz: f64) -> Vec<ScanSample> {
+    simulate_samples(angles, &stud_scene(GeometryModel::SmallAngle), rate_hz, 1.0)
+}
+
+#[test]
+fn snapshot_coverage_grows_with_the_fraction_of_the_frame() {
+    for (name, angles) in [
+        ("lissajous", lissajous as imaging_support::Angles),
+        ("raster", raster),
+    ] {
+        // A frame that starts late on the sample clock: the snapshots count from its start.
+        let samples: Vec<ScanSample> = stud_samples(angles, 5_000.0)
+            .into_iter()
+            .map(|s| ScanSample {
+                t_s: s.t_s + 2.0,
+                ..s
+            })
+            .collect();
+        let imaging = image_samples(&samples, &ImagingOptions::default()).unwrap();
+        let frame = ScanFrame::from_first_sample(samples.iter().map(|s| s.t_s), 1.0);
+        assert_eq!(frame.start_s, 2.0);
+        let shots = snapshots(
+            &imaging.reconstruction.cloud.points,
+            None,
+            imaging.map.spec,
+            imaging.options.grid,
+            frame,
+            &SNAPSHOT_FRACTIONS,
+        );
+        let coverage: Vec<f64> = shots.iter().map(|s| s.map.coverage_fraction()).collect();
+        // Coverage never shrinks; the Lissajous figure reaches new cells all frame long, the
+        // raster finishes its one slow sweep at 0.25 s and then retraces the same lines.
+        assert!(
+            coverage[0] > 0.0 && coverage[0] < coverage[1],
+            "{name}: {coverage:?}"
+        );
+        assert!(
+            coverage.windows(2).all(|w| w[0] <= w[1]),
+            "{name}: {coverage:?}"
+        );
+        if name == "lissajous" {
+            assert!(coverage.windows(2).all(|w| w[0] < w[1]), "{coverage:?}");
+        }
+        // The whole frame is the map itself (no fill asked).
+        assert_eq!(shots[3].map, imaging.map, "{name}");
+        assert!((shots[1].t_s - 0.25).abs() < 1e-12, "{name}");
+    }
+}
+
+#[test]
+fn the_profile_through_the_stud_crosses_its_height_as_the_truth_does() {
+    let options = ImagingOptions {
+        subtract_plane: true,
+        feature: Some(FeatureParams::default()),
+        ..ImagingOptions::default()
+    };
+    let imaging = image_samples(&stud_samples(lissajous, 10_000.0), &options).unwrap();
+    let feature = imaging.feature.clone().unwrap().unwrap();
+    let (cx, cy) = field_centre();
+    // The feature points' centre is the stud's centre (a ring: its points all round).
+    assert!(
+        (feature.centre_mm[0] - cx).hypot(feature.centre_mm[1] - cy) < 0.1,
+        "{:?} against ({cx}, {cy})",
+        feature.centre_mm
+    );
+    let plane = imaging.plane.clone().unwrap().plane;
+    let surface = stud_surface();
+    let profiles = sections(
+        &imaging.map,
+        (feature.centre_mm[0], feature.centre_mm[1]),
+        |x, y| Some(plane.height_mm([x, y, surface(x, y)])),
+    );
+    for section in [Section::X, Section::Y] {
+        let points: Vec<_> = profiles.along(section).collect();
+        let heights: Vec<f64> = points.iter().filter_map(|p| p.height_mm).collect();
+        assert!(heights.len() > 50, "{section:?}: {}", heights.len());
+        let top = heights.iter().copied().fold(f64::MIN, f64::max);
+        let base = heights.iter().copied().fold(f64::MAX, f64::min);
+        // Gridding averages only samples within one pitch: the top cells are the stud's.
+        assert!(
+            (top - base - STUD_HEIGHT_MM).abs() < 0.01,
+            "{section:?}: top {top} base {base}"
+        );
+        // The section crosses the ring twice: four steps of the true surface.
+        let truth: Vec<f64> = points.iter().map(|p| p.true_height_mm.unwrap()).collect();
+        let steps = truth
+            .windows(2)
+            .filter(|w| (w[1] - w[0]).abs() > 2.0)
+            .count();
+        assert_eq!(steps, 4, "{section:?}");
+        // Away from the walls the map is the truth.
+        let agree = points
+            .iter()
+            .filter(|p| p.height_mm.is_some())
+            .filter(|p| (p.height_mm.unwrap() - p.true_height_mm.unwrap()).abs() < 0.01)
+            .count();
+        assert!(
+            agree as f64 > 0.9 * heights.len() as f64,
+            "{section:?}: {agree}"
+        );
+    }
+}
+
+#[test]
+fn scanhil_reconstruct_writes_a_readable_map_snapshots_and_profiles_and_compare_draws_both_scans() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut outs = Vec::new();
+    for (name, angles) in [
+        ("lissajous", lissajous as imaging_support::Angles),
+        ("raster", raster),
+    ] {
+        let input = dir.path().join(format!("{name}.csv"));
+        let samples = stud_samples(angles, 5_000.0);
+        write_recording_csv(std::fs::File::create(&input).unwrap(), &samples).unwrap();
+        let out = dir.path().join(name);
+        let (_, report) = reconstruct_succeeds(
+            scanhil_reconstruct(&input, &out).args([
+                "--feature-height",
+                "--subtract-plane",
+                "--pitch-mm",
+                "0.1",
+            ]),
+            &out,
+        );
+        for file in [
+            "height_map.png",
+            "snapshots.png",
+            "profiles.svg",
+            "profiles.csv",
+        ] {
+            assert!(report.files.iter().any(|f| f == file), "{name}: {file}");
+        }
+        // The readable map: at least 500 px wide, missing cells in the named grey.
+        let png = image::open(out.join("height_map.png")).unwrap().to_rgb8();
+        assert!(
+            png.width() >= 500 && png.height() >= 500,
+            "{:?}",
+            png.dimensions()
+        );
+        assert!(report.coverage_fraction < 1.0);
+        assert!(png.pixels().any(|p| p.0 == MISSING_RGB), "{name}");
+        // Fig. 6: four snapshots from the frame's start, coverage growing.
+        let frame = report.frame.unwrap();
+        assert_eq!((frame.start_s, frame.length_s), (0.0, 0.9998));
+        let coverage: Vec<f64> = report
+            .snapshots
+            .iter()
+            .map(|s| s.coverage_fraction)
+            .collect();
+        assert_eq!(coverage.len(), 4, "{name}");
+        assert!(
+            coverage[0] < coverage[1] && coverage.windows(2).all(|w| w[0] <= w[1]),
+            "{name}: {coverage:?}"
+        );
+        assert_eq!(coverage[3], report.coverage_fraction);
+        // Fig. 10: the sections cross at the feature, and its height shows in them.
+        assert_eq!(
+            report.profile_centre.as_ref().unwrap().from,
+            "feature_points"
+        );
+        let profiles = Profiles::read_csv_file(&out.join("profiles.csv")).unwrap();
+        // At 5 kHz the raster's lines are 0.2 mm apart along y: its x section may run
+        // between two lines; its y section crosses every line.
+        let top = profiles
+            .along(Section::Y)
+            .filter_map(|p| p.height_mm)
+            .fold(f64::MIN, f64::max);
+        assert!((top - STUD_HEIGHT_MM).abs() < 0.05, "{name}: {top}");
+        assert!(profiles.along(Section::X).count() == report.grid.nx);
+        outs.push(out);
+    }
+
+    let compared = dir.path().join("compared");
+    let run = scanhil_compare(&outs[0], &outs[1], &compared)
+        .args(["--labels", "Lissajous,raster"])
+        .output()
+        .unwrap();
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let single = image::open(outs[0].join("snapshots.png")).unwrap();
+    let both = image::open(compared.join("snapshots.png")).unwrap();
+    // Two rows of four panels (over both grids' extent: the width differs a little).
+    assert!(
+        both.width().abs_diff(single.width()) < single.width() / 10,
+        "{} against {}",
+        both.width(),
+        single.width()
+    );
+    assert!(
+        both.height() > single.height() * 3 / 2,
+        "{:?}",
+        both.height()
+    );
+    let svg = std::fs::read_to_string(compared.join("profiles.svg")).unwrap();
+    for needle in ["Lissajous", "raster", "section along x", "section along y"] {
+        assert!(svg.contains(needle), "{needle}");
+    }
+
+    // A folder without the data: refused, naming the folder and the file.
+    let bare = dir.path().join("bare");
+    std::fs::create_dir_all(&bare).unwrap();
+    for file in ["report.json", "points.ply"] {
+        std::fs::copy(outs[1].join(file), bare.join(file)).unwrap();
+    }
+    let run = scanhil_compare(&outs[0], &bare, &dir.path().join("c2"))
+        .output()
+        .unwrap();
+    assert!(!run.status.success());
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        stderr.contains(&format!("{}: no profiles.csv", bare.display())),
+        "{stderr}"
+    );
+}
+
+/// `scanhil compare A B --out OUT`.
+fn scanhil_compare(
+    a: &std::path::Path,
+    b: &std::path::Path,
+    out: &std::path::Path,
+) -> std::process::Command {
+    let mut command = std::process::Command::new(env!("CARGO_BIN_EXE_scanhil"));
+    command.arg("compare").arg(a).arg(b).arg("--out").arg(out);
+    command
 }

@@ -14,7 +14,7 @@
 //! - `progressive.svg` (and `.png`): the same against scan time, Lissajous and raster side by side
 //!   (reconstructed with the paper's model);
 //! - `{lissajous,raster}_{0.05,0.1,0.25,0.5,1}s.png`: the image after that much scan time,
-//!   missing cells magenta (Fig. 6);
+//!   missing cells grey (Fig. 6);
 //! - `timing.json`: wall time of each stage (a benchmark figure, not a test);
 //! - `{lissajous,raster}_samples.csv`: the simulated recordings, ready for
 //!   `scanhil reconstruct`;
@@ -121,7 +121,11 @@ fn main() -> anyhow::Result<()> {
                 for (t, map) in
                     progressive_maps(&r.cloud.points, spec, comparison.grid_method, &SNAPSHOTS_S)
                 {
-                    map.write_png(&out.join(format!("{name}_{t}s.png")), 4)?;
+                    map.draw_png(
+                        &out.join(format!("{name}_{t}s.png")),
+                        &format!("{name} after {t} s"),
+                        "z_s (mm)",
+                    )?;
                 }
             }
         }
@@ -215,9 +219,11 @@ fn duplo_feature_heights(out: &Path) -> anyhow::Result<()> {
                 tilt_deg
             );
             if model == GeometryModel::SmallAngle {
-                imaging
-                    .map
-                    .write_png(&out.join(format!("duplo_{name}.png")), 3)?;
+                imaging.map.draw_png(
+                    &out.join(format!("duplo_{name}.png")),
+                    &format!("Duplo stud, {name}"),
+                    "height above the base plane (mm)",
+                )?;
             }
             rows.push(serde_json::json!({
                 "trajectory": name,

@@ -1,19 +1,18 @@
 //! Line charts with linear or logarithmic axes, written as SVG or PNG.
 
 use std::path::Path;
-use std::sync::Once;
 
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::ReportError;
+use crate::{ReportError, register_font};
 
 /// How an axis maps values to positions.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Axis {
     /// Evenly spaced values.
     Linear,
-    /// Evenly spaced decades; values that are not positive are left out of the line.
+    /// Evenly spaced decades; values that are not positive are left out (the line breaks).
     Log,
 }
 
@@ -27,10 +26,7 @@ impl Axis {
 
     fn label(self, v: f64) -> String {
         match self {
-            Axis::Linear => format!("{v:.3}")
-                .trim_end_matches('0')
-                .trim_end_matches('.')
-                .to_string(),
+            Axis::Linear => tick_label(v),
             Axis::Log => format!("{:.2e}", 10f64.powf(v)),
         }
     }
@@ -41,7 +37,8 @@ impl Axis {
 pub struct Series {
     /// The legend entry.
     pub label: String,
-    /// (x, y) points, drawn in order.
+    /// (x, y) points, drawn in order; a point that cannot be drawn (not finite, or not
+    /// positive on a log axis) is left out and breaks the line there.
     pub points: Vec<(f64, f64)>,
     /// Draw a marker at every point as well as the line.
     pub markers: bool,
@@ -64,9 +61,20 @@ pub struct Chart {
     pub series: Vec<Series>,
 }
 
+/// Line colours in series order: black, then the Okabe-Ito colours (told apart with colour
+/// blindness, none pale on white).
+const PALETTE: [[u8; 3]; 7] = [
+    [0, 0, 0],
+    [0, 114, 178],
+    [213, 94, 0],
+    [0, 158, 115],
+    [204, 121, 167],
+    [86, 180, 233],
+    [230, 159, 0],
+];
+
 const PANEL_WIDTH_PX: u32 = 900;
 const PANEL_HEIGHT_PX: u32 = 450;
-const FONT: &[u8] = include_bytes!("../fonts/DejaVuSans.ttf");
 
 /// Draws `charts` stacked top to bottom into `path`; `.svg` or `.png` picks the format.
 pub fn draw_charts(path: &Path, charts: &[Chart]) -> Result<(), ReportError> {
@@ -93,15 +101,15 @@ pub fn draw_charts(path: &Path, charts: &[Chart]) -> Result<(), ReportError> {
     }
 }
 
-fn register_font() {
-    static REGISTER: Once = Once::new();
-    REGISTER.call_once(|| {
-        for style in [FontStyle::Normal, FontStyle::Bold] {
-            // The font is compiled in and known to parse; a failure here is a build defect.
-            plotters::style::register_font("sans-serif", style, FONT)
-                .unwrap_or_else(|_| panic!("bundled DejaVuSans.ttf does not parse"));
-        }
-    });
+/// A linear axis' tick label: at most three decimals, trailing zeros dropped.
+pub(crate) fn tick_label(v: f64) -> String {
+    let text = format!("{v:.3}");
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    if text == "-0" {
+        "0".into()
+    } else {
+        text.into()
+    }
 }
 
 fn bad_data(path: &Path, reason: String) -> ReportError {
@@ -122,19 +130,23 @@ fn draw_on<DB: DrawingBackend>(
     };
     root.fill(&WHITE).map_err(|e| drawing(&e))?;
     for (chart, area) in charts.iter().zip(root.split_evenly((charts.len(), 1))) {
-        let lines: Vec<Vec<(f64, f64)>> = chart
+        // Each series as runs of drawable points: a value that cannot be drawn breaks it.
+        let lines: Vec<Vec<Vec<(f64, f64)>>> = chart
             .series
             .iter()
             .map(|s| {
-                s.points
-                    .iter()
-                    .filter_map(|&(x, y)| {
-                        Some((chart.x_axis.to_plot(x)?, chart.y_axis.to_plot(y)?))
-                    })
-                    .collect()
+                let mut runs = vec![Vec::new()];
+                for &(x, y) in &s.points {
+                    match (chart.x_axis.to_plot(x), chart.y_axis.to_plot(y)) {
+                        (Some(x), Some(y)) => runs.last_mut().expect("one run").push((x, y)),
+                        _ => runs.push(Vec::new()),
+                    }
+                }
+                runs.retain(|run| !run.is_empty());
+                runs
             })
             .collect();
-        let (x_range, y_range) = bounds(lines.iter().flatten()).ok_or_else(|| {
+        let (x_range, y_range) = bounds(lines.iter().flatten().flatten()).ok_or_else(|| {
             bad_data(
                 path,
                 format!("chart '{}' has no drawable point", chart.title),
@@ -155,17 +167,21 @@ fn draw_on<DB: DrawingBackend>(
             .draw()
             .map_err(|e| drawing(&e))?;
         for (i, (series, line)) in chart.series.iter().zip(&lines).enumerate() {
-            let colour = Palette99::pick(i).to_rgba();
-            ctx.draw_series(LineSeries::new(
-                line.iter().copied(),
-                colour.stroke_width(2),
-            ))
-            .map_err(|e| drawing(&e))?
-            .label(&series.label)
-            .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], colour));
-            if series.markers {
-                ctx.draw_series(line.iter().map(|&p| Circle::new(p, 3, colour.filled())))
+            let [r, g, b] = PALETTE[i % PALETTE.len()];
+            let colour = RGBColor(r, g, b).to_rgba();
+            for (k, run) in line.iter().enumerate() {
+                let drawn = ctx
+                    .draw_series(LineSeries::new(run.iter().copied(), colour.stroke_width(2)))
                     .map_err(|e| drawing(&e))?;
+                if k == 0 {
+                    drawn
+                        .label(&series.label)
+                        .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], colour));
+                }
+                if series.markers {
+                    ctx.draw_series(run.iter().map(|&p| Circle::new(p, 3, colour.filled())))
+                        .map_err(|e| drawing(&e))?;
+                }
             }
         }
         ctx.configure_series_labels()
@@ -238,6 +254,35 @@ mod tests {
         empty.series[0].points = vec![(-1.0, 1.0)];
         let err = draw_charts(Path::new("plot.svg"), &[empty]).unwrap_err();
         assert!(err.to_string().contains("no drawable point"), "{err}");
+    }
+
+    #[test]
+    fn a_value_that_cannot_be_drawn_breaks_the_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("gap.svg");
+        let mut chart = sample_chart();
+        chart.x_axis = Axis::Linear;
+        chart.y_axis = Axis::Linear;
+        chart.series[0].markers = false;
+        chart.series[0].points = vec![
+            (0.0, 1.0),
+            (1.0, 2.0),
+            (2.0, f64::NAN),
+            (3.0, 1.0),
+            (4.0, 0.0),
+        ];
+        draw_charts(&path, &[chart.clone()]).unwrap();
+        let broken = std::fs::read_to_string(&path)
+            .unwrap()
+            .matches("<polyline")
+            .count();
+        chart.series[0].points[2].1 = 1.5;
+        draw_charts(&path, &[chart]).unwrap();
+        let whole = std::fs::read_to_string(&path)
+            .unwrap()
+            .matches("<polyline")
+            .count();
+        assert_eq!(broken, whole + 1);
     }
 
     #[test]

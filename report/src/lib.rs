@@ -5,7 +5,8 @@
 //! # Layout
 //! - [`chart`]: [`Chart`] and [`Series`], drawn by [`draw_charts`] into one file, one panel per
 //!   chart stacked vertically; the file's extension (`.svg` or `.png`) picks the backend.
-//! - [`height_map`]: a grid of heights (with missing cells) written as a false-colour PNG.
+//! - [`height_map`]: height maps for people: one or more panels of a grid of heights (with
+//!   missing cells marked) in mm, on one colour scale with a colour bar, as a PNG.
 //!
 //! PNG text is rendered with the DejaVu Sans font bundled in `fonts/` (licence beside it), so
 //! nothing depends on the fonts installed on the machine.
@@ -14,9 +15,28 @@ pub mod chart;
 pub mod height_map;
 
 pub use chart::{Axis, Chart, Series, draw_charts};
-pub use height_map::{HeightMapImage, write_height_map_png};
+pub use height_map::{MISSING_RGB, MapFigure, MapPanel, draw_height_maps};
 
 use std::path::PathBuf;
+use std::sync::Once;
+
+use plotters::style::FontStyle;
+
+/// The bundled font every chart and map draws its text with.
+const FONT: &[u8] = include_bytes!("../fonts/DejaVuSans.ttf");
+
+/// Registers the bundled font as "sans-serif" (once per process); both backends measure text
+/// with it, so it is registered before any drawing.
+pub(crate) fn register_font() {
+    static REGISTER: Once = Once::new();
+    REGISTER.call_once(|| {
+        for style in [FontStyle::Normal, FontStyle::Bold] {
+            // The font is compiled in and known to parse; a failure here is a build defect.
+            plotters::style::register_font("sans-serif", style, FONT)
+                .unwrap_or_else(|_| panic!("bundled DejaVuSans.ttf does not parse"));
+        }
+    });
+}
 
 /// Why a plot or image could not be written.
 #[derive(Debug, thiserror::Error)]

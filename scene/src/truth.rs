@@ -9,7 +9,7 @@ use serde::Deserialize;
 use crate::surface::{Surface, SurfaceConfig, SurfaceError};
 
 /// The true surface of a scene, to score a reconstruction against.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct TrueScene {
     /// The scene's name.
     pub name: String,

@@ -33,6 +33,8 @@ fn the_same_seed_gives_bit_identical_recordings_and_reports() {
         "points.ply",
         "height_map.png",
         "height_map.csv",
+        "snapshots.png",
+        "profiles.csv",
     ] {
         let first = std::fs::read(runs[0].path().join(file)).expect("first run's file");
         let second = std::fs::read(runs[1].path().join(file)).expect("second run's file");

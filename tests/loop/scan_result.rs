@@ -70,6 +70,9 @@ fn duplo_stud_height_tracking_and_recordings() {
         "height_map.csv",
         "tracking.svg",
         "progressive.svg",
+        "snapshots.png",
+        "profiles.svg",
+        "profiles.csv",
     ] {
         assert!(out.path().join(file).is_file(), "{file} written");
     }

@@ -1,6 +1,7 @@
 //! One module per `scanhil` subcommand: its clap `Args` and a `run` returning the exit code.
 
 pub mod analyze;
+pub mod compare;
 pub mod conformance;
 pub mod decode;
 pub mod identify;

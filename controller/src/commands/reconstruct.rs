@@ -9,6 +9,7 @@ use scanhil_controller::imaging::fill::FillMethod;
 use scanhil_controller::imaging::grid::GridMethod;
 use scanhil_controller::imaging::pipeline::{ImagingOptions, image_samples, write_outputs};
 use scanhil_controller::imaging::ply::PlyEncoding;
+use scanhil_controller::imaging::progressive::ScanFrame;
 use scanhil_controller::imaging::ransac::RansacParams;
 use scanhil_controller::imaging::recording::read_recording;
 use scanhil_controller::rig::Rig;
@@ -21,7 +22,8 @@ use scanhil_scene::truth::TrueScene;
 pub struct Args {
     /// The recording: CSV (header t_s,d_alpha_rad,d_beta_rad,z_meas_mm|ild_raw) or JSON lines.
     input: PathBuf,
-    /// Folder for points.ply, height_map.png, height_map.csv, progressive.svg and report.json.
+    /// Folder for points.ply, height_map.png/.csv, progressive.svg, snapshots.png,
+    /// profiles.svg/.csv and report.json.
     #[arg(long, default_value = "reconstruction")]
     out_dir: PathBuf,
     /// Reconstruction model: the paper's eq. 1-3 or the exact reflection.
@@ -194,8 +196,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     };
     let mut imaging = image_samples(&recording.samples, &options)
         .with_context(|| format!("imaging {}", args.input.display()))?;
-    let scan_time_s = recording.samples.iter().map(|s| s.t_s).fold(0.0, f64::max);
-    imaging.score_progressive(truth.as_ref(), scan_time_s);
+    let frame = ScanFrame::spanning(recording.samples.iter().map(|s| s.t_s));
+    imaging.score_progressive(truth.as_ref(), frame);
     let encoding = match args.ply {
         Encoding::Binary => PlyEncoding::BinaryLittleEndian,
         Encoding::Ascii => PlyEncoding::Ascii,

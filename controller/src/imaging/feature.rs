@@ -121,6 +121,9 @@ pub struct FeatureHeight {
     pub median_mm: f64,
     /// Number of feature points.
     pub points: usize,
+    /// The mean (x, y) of the feature points, mm: the feature's centre (of a ring-shaped
+    /// hollow stud too).
+    pub centre_mm: [f64; 2],
     /// The base plane.
     pub plane: PlaneFit,
     /// The settings used.
@@ -162,22 +165,25 @@ pub fn feature_height(
         .filter(|p| p.iter().all(|v| v.is_finite()))
         .map(|&p| (p, plane.plane.height_mm(p)))
         .collect();
-    let mut selected: Vec<f64> = match params.selection {
+    let feature: Vec<([f64; 3], f64)> = match params.selection {
         FeatureSelection::Inside { region } => heights
             .iter()
             .filter(|(p, _)| region.contains(p[0], p[1]))
-            .map(|&(_, h)| h)
+            .copied()
             .collect(),
         FeatureSelection::AboveThreshold {
             min_height_mm,
             edge_margin_mm,
         } => top_points(&heights, min_height_mm, edge_margin_mm),
     };
-    if selected.len() < 2 {
+    if feature.len() < 2 {
         return Err(FeatureError::TooFewFeaturePoints {
-            points: selected.len(),
+            points: feature.len(),
         });
     }
+    let centre = |k: usize| feature.iter().map(|(p, _)| p[k]).sum::<f64>() / feature.len() as f64;
+    let centre_mm = [centre(0), centre(1)];
+    let mut selected: Vec<f64> = feature.iter().map(|&(_, h)| h).collect();
     let n = selected.len() as f64;
     let mean = selected.iter().sum::<f64>() / n;
     let var = selected.iter().map(|h| (h - mean).powi(2)).sum::<f64>() / (n - 1.0);
@@ -193,17 +199,18 @@ pub fn feature_height(
         std_mm: var.sqrt(),
         median_mm: median,
         points: selected.len(),
+        centre_mm,
         plane,
         params: *params,
     })
 }
 
-/// Heights above `threshold` whose point is farther than `margin` from every lower point,
-/// found with a bucket grid of side `margin`.
-fn top_points(heights: &[([f64; 3], f64)], threshold: f64, margin: f64) -> Vec<f64> {
-    let above = heights.iter().filter(|(_, h)| *h > threshold);
+/// The points (with heights) above `threshold` that lie farther than `margin` from every
+/// lower point, found with a bucket grid of side `margin`.
+fn top_points(heights: &[([f64; 3], f64)], threshold: f64, margin: f64) -> Vec<([f64; 3], f64)> {
+    let above = heights.iter().filter(|(_, h)| *h > threshold).copied();
     if margin.is_nan() || margin <= 0.0 {
-        return above.map(|&(_, h)| h).collect();
+        return above.collect();
     }
     let key = |x: f64, y: f64| ((x / margin).floor() as i64, (y / margin).floor() as i64);
     let mut low: std::collections::HashMap<(i64, i64), Vec<(f64, f64)>> =
@@ -223,6 +230,5 @@ fn top_points(heights: &[([f64; 3], f64)], threshold: f64, margin: f64) -> Vec<f
                 })
             })
         })
-        .map(|&(_, h)| h)
         .collect()
 }

@@ -13,13 +13,12 @@
 //!   blurring further.
 //!
 //! A cell no sample reaches is missing (`None`); [`super::fill`] fills missing cells when
-//! asked. Row `iy = 0` is the lowest y; the PNG shows +y up (row 0 of the image is the
-//! highest y) and +x to the right.
+//! asked. Row `iy = 0` is the lowest y; the PNG shows +y up and +x to the right, in mm.
 
 use std::io::{self, Write};
 use std::path::Path;
 
-use scanhil_report::{HeightMapImage, ReportError, write_height_map_png};
+use scanhil_report::{MapFigure, MapPanel, ReportError, draw_height_maps};
 
 /// The regular grid: origin corner, pitch and size.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -210,33 +209,41 @@ impl HeightMap {
         self.heights_mm[i].is_some() && self.samples[i] == 0
     }
 
-    /// Writes the map as a false-colour PNG (+y up, +x right, missing cells magenta), each
-    /// cell drawn as a square of `pixels_per_cell` pixels (at least 1), and returns the height
-    /// range the colours span.
-    pub fn write_png(
+    /// The map as a panel of a height map figure, titled `title`.
+    #[must_use]
+    pub fn panel(&self, title: impl Into<String>) -> MapPanel<'_> {
+        MapPanel {
+            title: title.into(),
+            x_min_mm: self.spec.x_min_mm,
+            y_min_mm: self.spec.y_min_mm,
+            pitch_mm: self.spec.pitch_mm,
+            nx: self.spec.nx,
+            ny: self.spec.ny,
+            heights_mm: &self.heights_mm,
+        }
+    }
+
+    /// Draws the map as a PNG for people ([`draw_height_maps`]): axes in mm (+y up, +x
+    /// right), heights in false colour with a colour bar captioned `quantity`, missing cells
+    /// grey, `title` on top. Returns the height range the colours span.
+    pub fn draw_png(
         &self,
         path: &Path,
-        pixels_per_cell: usize,
+        title: &str,
+        quantity: &str,
     ) -> Result<Option<(f64, f64)>, ReportError> {
-        let k = pixels_per_cell.max(1);
-        let width = self.spec.nx * k;
-        let mut pixels = Vec::with_capacity(self.heights_mm.len() * k * k);
-        for iy in (0..self.spec.ny).rev() {
-            let row = &self.heights_mm[self.spec.index(0, iy)..][..self.spec.nx];
-            let line: Vec<Option<f64>> = row
-                .iter()
-                .flat_map(|&h| std::iter::repeat_n(h, k))
-                .collect();
-            for _ in 0..k {
-                pixels.extend_from_slice(&line);
-            }
-        }
-        write_height_map_png(
+        draw_height_maps(
             path,
-            &HeightMapImage {
-                width,
-                height: self.spec.ny * k,
-                cells: &pixels,
+            &MapFigure {
+                title: title.into(),
+                quantity: quantity.into(),
+                rows: vec![vec![self.panel(format!(
+                    "{} x {} cells of {} mm, {:.1} % measured",
+                    self.spec.nx,
+                    self.spec.ny,
+                    self.spec.pitch_mm,
+                    100.0 * self.coverage_fraction()
+                ))]],
             },
         )
     }

@@ -1,6 +1,7 @@
 //! The one imaging chain on one set of samples: calibrate, reconstruct with the rig's
 //! geometry, grid, fill, fit the base plane, measure a feature, score against a true surface
-//! over scan time, and write PLY + PNG + CSV + the progressive plot. `scanhil reconstruct` and
+//! over scan time, and write PLY, the height map (PNG for people, CSV), the progressive plot,
+//! the snapshots (Fig. 6) and the profiles (Fig. 10). `scanhil reconstruct` and
 //! the loop's `scan` both call [`image_samples`], [`Imaging::score_progressive`] and
 //! [`write_outputs`], so both write the same files and the same [`ImagingReport`] fields; each
 //! puts the report into its own `report.json`.
@@ -15,11 +16,13 @@ use super::feature::{FeatureError, FeatureHeight, FeatureParams, feature_height}
 use super::fill::{FillMethod, FillReport, fill_missing};
 use super::grid::{GridError, GridMethod, GridSpec, HeightMap, grid_points};
 use super::ply::{PlyEncoding, PlyError, write_ply_file};
+use super::profiles::{ProfileCentre, draw_profiles, sections};
 use super::progressive::{
-    ProgressiveComparison, ProgressivePoint, ProgressiveRun, progressive_errors,
+    ProgressiveComparison, ProgressivePoint, ProgressiveRun, ScanFrame, progressive_errors,
 };
 use super::ransac::{PlaneFit, RansacError, RansacParams, fit_plane};
 use super::reconstruct::{DEFAULT_MODEL, Reconstruction, ScanSample, reconstruct};
+use super::snapshots::{SNAPSHOT_FRACTIONS, SnapshotCoverage, draw_snapshots, snapshots};
 use crate::rig::Calibration;
 
 /// What to make of the samples.
@@ -86,21 +89,26 @@ pub struct Imaging {
     /// The z_s map's coverage, and its error against the true surface when one is known,
     /// after each checkpoint of scan time ([`Imaging::score_progressive`]).
     pub progressive: Vec<ProgressivePoint>,
-    /// The true scene scored against, if any.
-    pub truth: Option<String>,
+    /// The true scene scored against, if any (the profiles' true surface too).
+    pub truth: Option<TrueScene>,
+    /// The scan's frame: the time base of the checkpoints and snapshots (set by
+    /// [`Imaging::score_progressive`]; without it the points' time span).
+    pub frame: Option<ScanFrame>,
     /// The options used.
     pub options: ImagingOptions,
 }
 
 impl Imaging {
     /// Grids the z_s map (as the options say, whether or not the map here is
-    /// plane-subtracted) after `progressive_steps` equal parts of `[0, scan_time_s]` and
-    /// scores each against `truth` when given (coverage only without): see
-    /// [`progressive_errors`] for the figures. The last checkpoint is the whole scan.
-    pub fn score_progressive(&mut self, truth: Option<&TrueScene>, scan_time_s: f64) {
+    /// plane-subtracted) after `progressive_steps` equal parts of `frame` and scores each
+    /// against `truth` when given (coverage only without): see [`progressive_errors`] for the
+    /// figures. The last checkpoint is the whole frame; checkpoint times are counted from the
+    /// frame's start. Keeps `frame` (the snapshots' time base) and `truth` (the profiles'
+    /// true surface) for [`write_outputs`].
+    pub fn score_progressive(&mut self, truth: Option<&TrueScene>, frame: ScanFrame) {
         let steps = self.options.progressive_steps;
         let checkpoints: Vec<f64> = (1..=steps)
-            .map(|i| scan_time_s * i as f64 / steps as f64)
+            .map(|i| frame.time_at(i as f64 / steps as f64))
             .collect();
         self.progressive = progressive_errors(
             &self.reconstruction.cloud.points,
@@ -110,7 +118,11 @@ impl Imaging {
             &checkpoints,
             |x, y| truth.and_then(|t| t.z_mm(x, y)),
         );
-        self.truth = truth.map(|t| t.path.display().to_string());
+        for point in &mut self.progressive {
+            point.t_s -= frame.start_s;
+        }
+        self.frame = Some(frame);
+        self.truth = truth.cloned();
     }
 
     /// The error of the whole scan against the truth (the last checkpoint), if scored.
@@ -206,6 +218,7 @@ pub fn image_samples(
         feature,
         progressive: Vec::new(),
         truth: None,
+        frame: None,
         options: *options,
     })
 }
@@ -248,30 +261,60 @@ pub struct ImagingReport {
     pub truth_error: Option<ProgressivePoint>,
     /// Coverage (and error against the truth, when given) after each checkpoint of scan time.
     pub progressive: Vec<ProgressivePoint>,
+    /// The frame the checkpoints and snapshots count from.
+    #[serde(default)]
+    pub frame: Option<ScanFrame>,
+    /// Coverage of each snapshot in `snapshots.png`.
+    #[serde(default)]
+    pub snapshots: Vec<SnapshotCoverage>,
+    /// Where the sections in `profiles.svg` and `profiles.csv` cross.
+    #[serde(default)]
+    pub profile_centre: Option<ProfileCentre>,
     /// The options used.
     pub options: ImagingOptions,
     /// The files written, relative to the output folder.
     pub files: Vec<String>,
 }
 
-/// File names [`write_outputs`] uses inside its folder.
-pub const OUTPUT_FILES: [&str; 4] = [
-    "points.ply",
-    "height_map.png",
-    "height_map.csv",
-    "progressive.svg",
-];
+/// The point cloud (with each point's time: the snapshots are made again from it).
+pub const POINTS_PLY: &str = "points.ply";
+/// The height map for people: axes and colour bar in mm, missing cells marked.
+pub const HEIGHT_MAP_PNG: &str = "height_map.png";
+/// The height map's cells.
+pub const HEIGHT_MAP_CSV: &str = "height_map.csv";
+/// Coverage and error against scan time.
+pub const PROGRESSIVE_SVG: &str = "progressive.svg";
+/// The map after 10, 25, 50 and 100 % of the frame (Fig. 6).
+pub const SNAPSHOTS_PNG: &str = "snapshots.png";
+/// The sections along x and y through the feature (Fig. 10).
+pub const PROFILES_SVG: &str = "profiles.svg";
+/// The sections' cells and true heights.
+pub const PROFILES_CSV: &str = "profiles.csv";
 
-/// The height map PNG is drawn at least this many pixels along its longer side (whole
-/// pixels per cell, at most [`MAX_PIXELS_PER_CELL`]): a 0.1 mm grid over a 12 mm field is
-/// 480 px, not 120.
-pub const MIN_PNG_SIDE_PX: usize = 480;
-/// The most pixels per height map cell.
-pub const MAX_PIXELS_PER_CELL: usize = 8;
+impl ImagingReport {
+    /// What the map's heights are, for a caption: `z_s (mm)` or `height above the base
+    /// plane (mm)`.
+    #[must_use]
+    pub fn quantity_caption(&self) -> &'static str {
+        quantity_caption(&self.map_quantity)
+    }
+}
 
-/// Writes `points.ply`, `height_map.png`, `height_map.csv` and `progressive.svg` into `dir`
-/// (created if needed) and returns the report for the caller's `report.json`;
-/// `missing_by_reason` is copied into it.
+/// The caption of a map quantity (`z_mm` or `height_above_plane_mm`).
+fn quantity_caption(map_quantity: &str) -> &'static str {
+    if map_quantity == "height_above_plane_mm" {
+        "height above the base plane (mm)"
+    } else {
+        "z_s (mm)"
+    }
+}
+
+/// Writes into `dir` (created if needed) `points.ply`, `height_map.png`, `height_map.csv`,
+/// `progressive.svg` (when scored), `snapshots.png` and `profiles.svg`/`profiles.csv`, and
+/// returns the report for the caller's `report.json`; `missing_by_reason` is copied into it.
+/// The snapshots count from [`Imaging::frame`]; the profiles cross at the feature's centre
+/// (the map's centre without a feature) and carry the true surface when [`Imaging::truth`]
+/// is known.
 ///
 /// # Errors
 /// The first file that cannot be written.
@@ -283,19 +326,37 @@ pub fn write_outputs(
 ) -> Result<ImagingReport, ImagingError> {
     let io = |path: PathBuf| move |source| ImagingError::Io { path, source };
     std::fs::create_dir_all(dir).map_err(io(dir.to_owned()))?;
-    let [ply, png, csv, svg] = OUTPUT_FILES.map(|f| dir.join(f));
-    write_ply_file(&ply, &imaging.reconstruction.cloud, encoding)?;
-    let longer_side = imaging.map.spec.nx.max(imaging.map.spec.ny).max(1);
-    let pixels_per_cell = MIN_PNG_SIDE_PX
-        .div_ceil(longer_side)
-        .clamp(1, MAX_PIXELS_PER_CELL);
-    let map_range_mm = imaging.map.write_png(&png, pixels_per_cell)?;
+    let r = &imaging.reconstruction;
+    let model = r.cloud.model.name();
+    let mut files = Vec::new();
+    write_ply_file(&dir.join(POINTS_PLY), &r.cloud, encoding)?;
+    files.push(POINTS_PLY);
+    let map_quantity = if imaging.plane.is_some() {
+        "height_above_plane_mm"
+    } else {
+        "z_mm"
+    };
+    let caption = quantity_caption(map_quantity);
+    let map_range_mm = imaging.map.draw_png(
+        &dir.join(HEIGHT_MAP_PNG),
+        &format!(
+            "height map ({model} model, {})",
+            match imaging.options.fill {
+                FillMethod::None => "not filled",
+                FillMethod::Nearest => "filled: nearest",
+                FillMethod::Diffusion => "filled: diffusion",
+            }
+        ),
+        caption,
+    )?;
+    files.push(HEIGHT_MAP_PNG);
+    let csv = dir.join(HEIGHT_MAP_CSV);
     let file = std::fs::File::create(&csv).map_err(io(csv.clone()))?;
     imaging
         .map
         .write_csv(std::io::BufWriter::new(file))
         .map_err(io(csv.clone()))?;
-    let mut files: Vec<String> = OUTPUT_FILES[..3].iter().map(|f| f.to_string()).collect();
+    files.push(HEIGHT_MAP_CSV);
     if !imaging.progressive.is_empty() {
         let mut comparison = ProgressiveComparison::new(
             imaging.options.model,
@@ -306,27 +367,76 @@ pub fn write_outputs(
         );
         comparison.runs.push(ProgressiveRun {
             name: "this scan".into(),
-            samples: samples_in(&imaging.reconstruction),
-            missing_samples: imaging.reconstruction.missing_samples,
+            samples: samples_in(r),
+            missing_samples: r.missing_samples,
             points: imaging.progressive.clone(),
         });
-        comparison.draw(&svg)?;
-        files.push(OUTPUT_FILES[3].to_string());
+        comparison.draw(&dir.join(PROGRESSIVE_SVG))?;
+        files.push(PROGRESSIVE_SVG);
     }
-    let r = &imaging.reconstruction;
+    let frame = imaging
+        .frame
+        .unwrap_or_else(|| ScanFrame::spanning(r.cloud.points.iter().map(|p| p.t_s)));
+    let plane = imaging.plane.as_ref().map(|f| &f.plane);
+    let snapshots = snapshots(
+        &r.cloud.points,
+        plane,
+        imaging.map.spec,
+        imaging.options.grid,
+        frame,
+        &SNAPSHOT_FRACTIONS,
+    );
+    draw_snapshots(
+        &dir.join(SNAPSHOTS_PNG),
+        &format!(
+            "the map after parts of the {:.3} s frame (no fill)",
+            frame.length_s
+        ),
+        caption,
+        &[(String::new(), snapshots.clone())],
+    )?;
+    files.push(SNAPSHOTS_PNG);
+    let spec = imaging.map.spec;
+    let profile_centre = match &imaging.feature {
+        Some(Ok(f)) => ProfileCentre {
+            x_mm: f.centre_mm[0],
+            y_mm: f.centre_mm[1],
+            from: "feature_points".into(),
+        },
+        _ => ProfileCentre {
+            x_mm: spec.x_min_mm + 0.5 * spec.nx as f64 * spec.pitch_mm,
+            y_mm: spec.y_min_mm + 0.5 * spec.ny as f64 * spec.pitch_mm,
+            from: "map_centre".into(),
+        },
+    };
+    let profiles = sections(
+        &imaging.map,
+        (profile_centre.x_mm, profile_centre.y_mm),
+        |x, y| {
+            let z = imaging.truth.as_ref()?.z_mm(x, y)?;
+            Some(plane.map_or(z, |plane| plane.height_mm([x, y, z])))
+        },
+    );
+    draw_profiles(
+        &dir.join(PROFILES_SVG),
+        caption,
+        &[("this scan".to_string(), &profiles)],
+    )?;
+    files.push(PROFILES_SVG);
+    let csv = dir.join(PROFILES_CSV);
+    let file = std::fs::File::create(&csv).map_err(io(csv.clone()))?;
+    profiles
+        .write_csv(std::io::BufWriter::new(file))
+        .map_err(io(csv.clone()))?;
+    files.push(PROFILES_CSV);
     let report = ImagingReport {
-        model: r.cloud.model.name().to_string(),
+        model: model.to_string(),
         samples: samples_in(r),
         points: r.cloud.points.len(),
         missing_samples: r.missing_samples,
         non_finite_samples: r.non_finite_samples,
         missing_by_reason: missing_by_reason.clone(),
-        map_quantity: if imaging.plane.is_some() {
-            "height_above_plane_mm"
-        } else {
-            "z_mm"
-        }
-        .into(),
+        map_quantity: map_quantity.into(),
         grid: imaging.map.spec,
         coverage_fraction: imaging.map.coverage_fraction(),
         map_range_mm,
@@ -337,11 +447,14 @@ pub fn write_outputs(
             .feature
             .as_ref()
             .and_then(|f| f.as_ref().err().map(ToString::to_string)),
-        truth: imaging.truth.clone(),
+        truth: imaging.truth.as_ref().map(|t| t.path.display().to_string()),
         truth_error: imaging.truth_error(),
         progressive: imaging.progressive.clone(),
+        frame: Some(frame),
+        snapshots: snapshots.iter().map(|s| s.coverage()).collect(),
+        profile_centre: Some(profile_centre),
         options: imaging.options,
-        files,
+        files: files.into_iter().map(String::from).collect(),
     };
     Ok(report)
 }

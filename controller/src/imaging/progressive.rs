@@ -107,6 +107,57 @@ pub fn simulate_samples(
         .collect()
 }
 
+/// The part of the sample clock a scan images: from `start_s` (the first sample's time) for
+/// `length_s` (the scan's frame). Fractions of the scan are fractions of this span.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct ScanFrame {
+    /// The frame's first instant on the samples' clock, s.
+    pub start_s: f64,
+    /// The frame's length, s.
+    pub length_s: f64,
+}
+
+impl ScanFrame {
+    /// The frame of `length_s` that starts at the earliest finite time of `times_s` (0
+    /// without one): a scan's frame from its samples' times.
+    #[must_use]
+    pub fn from_first_sample(times_s: impl IntoIterator<Item = f64>, length_s: f64) -> ScanFrame {
+        let start_s = times_s
+            .into_iter()
+            .filter(|t| t.is_finite())
+            .fold(None, |acc: Option<f64>, t| {
+                Some(acc.map_or(t, |a| a.min(t)))
+            });
+        ScanFrame {
+            start_s: start_s.unwrap_or(0.0),
+            length_s,
+        }
+    }
+
+    /// The frame from the earliest to the latest finite time of `times_s` (a recording's
+    /// span; 0 s at 0 without one).
+    #[must_use]
+    pub fn spanning(times_s: impl IntoIterator<Item = f64>) -> ScanFrame {
+        let (first, last) = times_s
+            .into_iter()
+            .filter(|t| t.is_finite())
+            .fold(None, |acc: Option<(f64, f64)>, t| {
+                Some(acc.map_or((t, t), |(a, b)| (a.min(t), b.max(t))))
+            })
+            .unwrap_or((0.0, 0.0));
+        ScanFrame {
+            start_s: first,
+            length_s: last - first,
+        }
+    }
+
+    /// The sample time after `fraction` of the frame, s.
+    #[must_use]
+    pub fn time_at(&self, fraction: f64) -> f64 {
+        self.start_s + fraction * self.length_s
+    }
+}
+
 /// The map after every checkpoint time (ascending), from time-ordered points.
 #[must_use]
 pub fn progressive_maps(

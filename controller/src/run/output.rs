@@ -4,9 +4,10 @@
 //! |------|------|
 //! | `report.json` | scenario, rig, outcome, periods, timing, tracking error, trajectory figures, sample pairing, `imaging` (the same [`ImagingReport`](crate::imaging::pipeline::ImagingReport) `scanhil reconstruct` writes: feature height, coverage, error against the truth over scan time), link counters, the emulator's summary |
 //! | `points.ply` | the reconstructed point cloud (binary little-endian PLY with t, angles, z_meas) |
-//! | `height_map.png`, `height_map.csv` | the gridded heights (missing cells magenta / empty) |
+//! | `height_map.png`, `height_map.csv` | the gridded heights: a picture in mm with a colour bar (missing cells grey) / the cells (missing empty) |
 //! | `tracking.svg` | reference and measured angles, and the tracking error, over time |
 //! | `progressive.svg` | coverage, and the error against the true surface when one is known, against scan time |
+//! | `snapshots.png`, `profiles.svg`, `profiles.csv` | the map after 10/25/50/100 % of the frame (Fig. 6); sections along x and y through the feature against the truth (Fig. 10) |
 //! | `fsm.log` | every frame on the mirror link, candump `-L` format, loop-time stamps |
 //! | `sensor.ild` | every byte of the ILD stream, raw (`scanhil decode --format ild`) |
 
@@ -28,6 +29,7 @@ use super::sensor_link::{CountedSample, ILD_COUNTER_MODULUS, SensorCounters};
 use crate::imaging::grid::GridMethod;
 use crate::imaging::pipeline::{ImagingOptions, image_samples, write_outputs};
 use crate::imaging::ply::PlyEncoding;
+use crate::imaging::progressive::ScanFrame;
 use crate::imaging::reconstruct::ScanSample;
 
 /// The mirror link's candump log.
@@ -147,7 +149,8 @@ pub fn write(
     let scan_time_s = record.periods_done as f64 * record.angles.period_s();
     let imaging = if samples.iter().any(|s| s.z_meas_mm.is_some()) {
         let mut imaging = image_samples(&samples, &options).context("imaging the scan")?;
-        imaging.score_progressive(truth.as_ref(), scan_time_s);
+        let frame = ScanFrame::from_first_sample(samples.iter().map(|s| s.t_s), scan_time_s);
+        imaging.score_progressive(truth.as_ref(), frame);
         Some(
             write_outputs(
                 &imaging,
