@@ -227,7 +227,7 @@ def main():
     feature = imaging.get("feature") or {}
     print(f"vcan_loop_check: result: {imaging.get('points')} points, feature height "
           f"{feature.get('height_mm')} mm (std {feature.get('std_mm')} mm), "
-          f"tracking rms alpha {report['tracking_error']['second_half']['alpha']['rms_urad']:.2f} urad")
+          f"tracking rms alpha {report['tracking_error']['frame']['alpha']['rms_urad']:.2f} urad")
     return TALLY.finish("vcan_loop_check")
 
 

@@ -160,6 +160,7 @@ mod tests {
         RigMirror {
             coil_resistance_ohm: R_OHM,
             power_limit_w: 30.0,
+            amplifier_current_limit_a: None,
             cross_talk: RigCrossTalk {
                 alpha_from_beta: c,
                 beta_from_alpha: c,
@@ -203,6 +204,7 @@ mod tests {
             slow_axis: SensingAxis::Beta,
             alpha_amplitude_rad: 3.0,
             beta_amplitude_rad: 0.0,
+            fast_max_harmonic: None,
         };
         let estimate = estimate(&raster, &mirror(0.0), &effort, 10_000.0);
         let truncated = R_OHM * 9.0 / 3.0;

@@ -50,6 +50,9 @@ pub struct RigMirror {
     pub coil_resistance_ohm: f64,
     /// The limit on the coils' mean power (both axes together), W.
     pub power_limit_w: f64,
+    /// The current amplifiers' limit per coil axis, A (absent: not checked).
+    #[serde(default)]
+    pub amplifier_current_limit_a: Option<f64>,
     /// The cross-talk on the sensing axes' inputs (0 = none).
     #[serde(default)]
     pub cross_talk: RigCrossTalk,
@@ -68,10 +71,12 @@ pub struct RigCrossTalk {
 
 impl RigMirror {
     /// The paper's mirror: R = 30 W / (10 / |G(j 2 pi 52)|)^2 = 2.0172 ohm (full-range 52 Hz
-    /// sines on both sensing axes at 30 W), 30 W, cross-talk 0.1 (-20 dB) both ways.
+    /// sines on both sensing axes at 30 W), 30 W, 4 A amplifiers (the emulator's), cross-talk 0.1
+    /// (-20 dB) both ways.
     pub const PAPER: RigMirror = RigMirror {
         coil_resistance_ohm: 2.0172,
         power_limit_w: 30.0,
+        amplifier_current_limit_a: Some(4.0),
         cross_talk: RigCrossTalk {
             alpha_from_beta: 0.1,
             beta_from_alpha: 0.1,
@@ -82,6 +87,10 @@ impl RigMirror {
         for (field, value) in [
             ("mirror.coil_resistance_ohm", self.coil_resistance_ohm),
             ("mirror.power_limit_w", self.power_limit_w),
+            (
+                "mirror.amplifier_current_limit_a",
+                self.amplifier_current_limit_a.unwrap_or(1.0),
+            ),
         ] {
             if !(value.is_finite() && value > 0.0) {
                 return Err((field, format!("{value} must be positive and finite")));

@@ -54,6 +54,13 @@ pub enum Trajectory {
         /// Amplitude on beta, rad.
         #[serde(default = "full_range_rad")]
         beta_amplitude_rad: f64,
+        /// The fast triangle made of its odd harmonics up to this order only, scaled so its
+        /// peaks stay at the amplitude (`None`: the ideal triangle). The paper: a triangle
+        /// needs its first seven harmonics inside the loop's bandwidth (7 x 34 Hz = 238 Hz);
+        /// the ideal triangle's higher harmonics only drive the coils into their limit at the
+        /// corners.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        fast_max_harmonic: Option<u32>,
     },
     /// A step of `amplitude_rad` on one axis at `at_s`.
     Step {
@@ -114,6 +121,21 @@ fn triangle(f_hz: f64, t_s: f64) -> f64 {
     }
 }
 
+/// A triangle of period `1/f_hz` between -1 and 1 starting at -1, made of its odd harmonics up
+/// to order `max_order` and scaled so its peaks are exactly -1 and 1.
+fn band_limited_triangle(f_hz: f64, max_order: u32, t_s: f64) -> f64 {
+    let (sum, norm) = odd_orders(max_order).fold((0.0, 0.0), |(sum, norm), n| {
+        let weight = 1.0 / (n * n);
+        (sum + weight * (TAU * n * f_hz * t_s).cos(), norm + weight)
+    });
+    -sum / norm
+}
+
+/// The odd harmonic orders 1, 3, ... up to `max_order`.
+fn odd_orders(max_order: u32) -> impl Iterator<Item = f64> {
+    (1..=max_order).step_by(2).map(f64::from)
+}
+
 /// One frequency of a reference: `Re(phasor e^(j 2 pi f t))` per sensing axis, rad (for
 /// `f_hz = 0` the phasor is the constant value).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -153,14 +175,25 @@ fn on_axis(axis: SensingAxis, f_hz: f64, phasor: Complex<f64>) -> Tone {
 }
 
 /// The odd harmonics below `nyquist_hz` of a triangle between `-amplitude` and `amplitude`
-/// starting at `-amplitude` (the raster's).
-fn triangle_tones(axis: SensingAxis, f_hz: f64, amplitude_rad: f64, nyquist_hz: f64) -> Vec<Tone> {
+/// starting at `-amplitude` (the raster's): `-8 A / (pi^2 n^2)` at `n f`, or, made of its
+/// harmonics up to `max_order` only, `-A / (n^2 sum_k 1/k^2)` (peaks kept at `A`).
+fn triangle_tones(
+    axis: SensingAxis,
+    f_hz: f64,
+    amplitude_rad: f64,
+    nyquist_hz: f64,
+    max_order: Option<u32>,
+) -> Vec<Tone> {
+    let scale = match max_order {
+        Some(order) => 1.0 / odd_orders(order).map(|n| 1.0 / (n * n)).sum::<f64>(),
+        None => 8.0 / (PI * PI),
+    };
     (1u64..)
         .step_by(2)
         .map(|n| (n as f64, n as f64 * f_hz))
-        .take_while(|(_, f)| *f < nyquist_hz)
+        .take_while(|(n, f)| *f < nyquist_hz && max_order.is_none_or(|m| *n <= f64::from(m)))
         .map(|(n, f)| {
-            let c = -8.0 * amplitude_rad / (PI * PI * n * n);
+            let c = -scale * amplitude_rad / (n * n);
             on_axis(axis, f, Complex::new(c, 0.0))
         })
         .collect()
@@ -211,6 +244,7 @@ impl Trajectory {
                 slow_axis,
                 alpha_amplitude_rad,
                 beta_amplitude_rad,
+                fast_max_harmonic,
             } => {
                 let amplitude = |axis: SensingAxis| match axis {
                     SensingAxis::Alpha => alpha_amplitude_rad,
@@ -218,12 +252,13 @@ impl Trajectory {
                 };
                 let fast_axis = slow_axis.other();
                 let mut tones =
-                    triangle_tones(slow_axis, slow_hz, amplitude(slow_axis), nyquist_hz);
+                    triangle_tones(slow_axis, slow_hz, amplitude(slow_axis), nyquist_hz, None);
                 tones.extend(triangle_tones(
                     fast_axis,
                     fast_hz,
                     amplitude(fast_axis),
                     nyquist_hz,
+                    fast_max_harmonic,
                 ));
                 tones
             }
@@ -370,8 +405,13 @@ impl Trajectory {
                 slow_axis,
                 alpha_amplitude_rad,
                 beta_amplitude_rad,
+                fast_max_harmonic,
             } => {
-                let (slow, fast) = (triangle(slow_hz, t_s), triangle(fast_hz, t_s));
+                let fast = match fast_max_harmonic {
+                    Some(order) => band_limited_triangle(fast_hz, order, t_s),
+                    None => triangle(fast_hz, t_s),
+                };
+                let (slow, fast) = (triangle(slow_hz, t_s), fast);
                 let (alpha, beta) = match slow_axis {
                     SensingAxis::Alpha => (slow, fast),
                     SensingAxis::Beta => (fast, slow),
@@ -548,6 +588,7 @@ mod tests {
             slow_axis: SensingAxis::Beta,
             alpha_amplitude_rad: 0.02,
             beta_amplitude_rad: 0.01,
+            fast_max_harmonic: None,
         };
         let half = raster.scaled(0.5);
         for t_s in [0.0, 0.013, 0.2, 0.377] {

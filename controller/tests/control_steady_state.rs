@@ -101,6 +101,7 @@ fn a_raster_under_the_pid_tracks_as_its_harmonics_predict() {
         slow_axis: SensingAxis::Alpha,
         alpha_amplitude_rad: 0.002,
         beta_amplitude_rad: 0.002,
+        fast_max_harmonic: None,
     };
     let axis = settings.axis_controller().expect("the controller");
     let predicted = predict(&settings.nominal_loop(&axis), &trajectory);

@@ -51,6 +51,7 @@ fn raster_2_34_has_17_lines_per_quarter_second_sweep() {
         slow_axis: SensingAxis::Beta,
         alpha_amplitude_rad: 0.02,
         beta_amplitude_rad: 0.02,
+        fast_max_harmonic: None,
     };
     let fig = raster.figures(Some((11.5, 18.5)));
     assert_eq!(fig.lines_per_frame, Some(17.0));

@@ -20,7 +20,7 @@ use scanhil_controller::run::host_inbox::HostInbox;
 use scanhil_controller::run::host_loop::{HostAction, HostLoop, LoopError};
 use scanhil_controller::run::output::{self, RunData};
 use scanhil_controller::run::pairing::SensorClock;
-use scanhil_controller::run::power_guard;
+use scanhil_controller::run::plan::{PlanSummary, ScanPlan};
 use scanhil_controller::run::scenario::{NodeLink, Scenario, TimingMode};
 use scanhil_controller::run::sensor_link::IldSampleDecoder;
 use scanhil_controller::run::sensor_setup::SensorSetupReport;
@@ -46,6 +46,10 @@ pub struct InProcessOutcome {
     pub run: RunData,
     /// The sensor's clock as the emulated sensor declared it (`None`: no sample was sent).
     pub sensor_clock: Option<SensorClock>,
+    /// What ran: the scenario with the trajectory after the power check.
+    pub scenario: Scenario,
+    /// The plan's figures (lead-in, power check, predicted tracking error).
+    pub plan: PlanSummary,
     /// How the run ended (as the output writer says, when it ran).
     pub end: ScanEnd,
 }
@@ -56,8 +60,14 @@ impl InProcessOutcome {
     ///
     /// # Errors
     /// A file that cannot be written.
-    pub fn write(&self, scenario: &Scenario, out_dir: &Path) -> anyhow::Result<ScanEnd> {
-        output::write(scenario, &self.run, self.sensor_clock, out_dir)
+    pub fn write(&self, out_dir: &Path) -> anyhow::Result<ScanEnd> {
+        output::write(
+            &self.scenario,
+            &self.plan,
+            &self.run,
+            self.sensor_clock,
+            out_dir,
+        )
     }
 }
 
@@ -82,14 +92,21 @@ pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProc
         );
     };
     let started = std::time::Instant::now();
-    let mut controller = scenario.build_controller()?;
-    let guarded = power_guard::guard(scenario, &controller)?;
-    // What runs (and is reported) is the guarded trajectory.
-    let guarded_scenario = Scenario {
-        trajectory: guarded.trajectory.clone(),
+    let plan = ScanPlan::new(scenario)?;
+    let periods = plan.periods();
+    let ScanPlan {
+        mut controller,
+        trajectory,
+        backoff,
+        summary: plan_summary,
+        ..
+    } = plan;
+    // What runs (and is reported) is the trajectory after the power check.
+    let planned_scenario = Scenario {
+        trajectory,
         ..scenario.clone()
     };
-    let scenario = &guarded_scenario;
+    let scenario = &planned_scenario;
     let (scene, plant) = load_plant(scene_path, Some(scenario.seed))?;
     let period_s = controller.period_s();
     let rig_sensor_hz = scenario.rig.sensor.map(|sensor| sensor.measuring_rate_hz);
@@ -104,7 +121,6 @@ pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProc
     }
     .check(scene_path, period_s, rig_sensor_hz)?;
     let measuring_rate_hz = rig_sensor_hz.unwrap_or_default();
-    let periods = (scenario.duration_s / period_s).round() as u64;
     if serves_sensor && scenario.links.sensor == NodeLink::Uri("fsm".into()) {
         bail!(
             "{}: the in-process loop carries the sensor on the ILD stream only, not as \
@@ -120,11 +136,12 @@ pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProc
     let mut lockstep_node = LockstepNode::new(&mut node, DEFAULT_HEARTBEAT_HZ);
     let mut host = HostLoop::new(
         &mut controller,
-        &guarded.trajectory,
+        &scenario.trajectory,
         periods,
         HostInbox::new(LINK_NAME),
     )
-    .with_backoff(guarded.backoff.clone());
+    .with_lead_in(plan_summary.lead_in.periods)
+    .with_backoff(backoff);
     loop {
         match host.next_action() {
             HostAction::Done => break,
@@ -194,13 +211,14 @@ pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProc
                          no ASCII line to configure it over"
                     .into(),
             }),
-            power: guarded.check.clone(),
         },
         sensor_clock,
+        scenario: scenario.clone(),
+        plan: plan_summary,
         end,
     };
     if let Some(dir) = out_dir {
-        outcome.end = outcome.write(scenario, dir)?;
+        outcome.end = outcome.write(dir)?;
     }
     Ok(outcome)
 }

@@ -7,7 +7,8 @@
 use std::path::{Path, PathBuf};
 
 use scanhil_controller::rig::RigMirror;
-use scanhil_controller::run::power_guard::{self, PowerPolicy};
+use scanhil_controller::run::plan::ScanPlan;
+use scanhil_controller::run::power_guard::PowerPolicy;
 use scanhil_controller::run::scenario::Scenario;
 use scanhil_protocol::message::FaultKind;
 
@@ -54,9 +55,11 @@ fn the_shipped_scans_fit_the_limit_unchanged() {
         if let Some(controller) = controller {
             loaded.controller = scenarios_dir().join("../controllers").join(controller);
         }
-        let built = loaded.build_controller().unwrap();
-        let guarded = power_guard::guard(&loaded, &built).unwrap();
-        let check = guarded.check.expect("the paper's rigs know their mirror");
+        let plan = ScanPlan::new(&loaded).unwrap();
+        let check = plan
+            .summary
+            .power
+            .expect("the paper's rigs know their mirror");
         println!(
             "{file} ({}): {:.2} W mean at steady state (R = {} ohm, budget {:.1} W), \
              peak coil current <= {:.2} A, factor {}",
@@ -68,12 +71,12 @@ fn the_shipped_scans_fit_the_limit_unchanged() {
             check.factor
         );
         assert_eq!(check.factor, 1.0, "{file}");
-        assert_eq!(guarded.trajectory, loaded.trajectory, "{file}");
+        assert_eq!(plan.trajectory, loaded.trajectory, "{file}");
         assert!(check.before.mean_power_w < check.budget_w, "{file}");
         // Under the earlier reading (twice the resistance) the same scan is over 30 W.
         loaded.rig.mirror = Some(old_r);
         loaded.power.policy = PowerPolicy::Off;
-        let old = power_guard::guard(&loaded, &built).unwrap().check.unwrap();
+        let old = ScanPlan::new(&loaded).unwrap().summary.power.unwrap();
         println!(
             "  at R = {} ohm: {:.2} W",
             old.coil_resistance_ohm, old.before.mean_power_w
@@ -85,9 +88,8 @@ fn the_shipped_scans_fit_the_limit_unchanged() {
 #[test]
 fn a_full_range_sine_over_the_limit_is_shrunk_or_refused_with_the_numbers() {
     let shrink = sine_scenario(60.0, "shrink", true, 1.0);
-    let built = shrink.build_controller().unwrap();
-    let guarded = power_guard::guard(&shrink, &built).unwrap();
-    let check = guarded.check.unwrap();
+    let plan = ScanPlan::new(&shrink).unwrap();
+    let check = plan.summary.power.unwrap();
     println!(
         "full-range 60 Hz sine under the PID: {:.2} W -> factor {:.4} -> {:.2} W",
         check.before.mean_power_w, check.factor, check.after.mean_power_w
@@ -95,10 +97,10 @@ fn a_full_range_sine_over_the_limit_is_shrunk_or_refused_with_the_numbers() {
     assert!(check.before.mean_power_w > 30.0);
     assert!(check.factor < 1.0);
     assert!((check.after.mean_power_w - 27.0).abs() < 1e-9);
-    assert_eq!(guarded.trajectory, shrink.trajectory.scaled(check.factor));
+    assert_eq!(plan.trajectory, shrink.trajectory.scaled(check.factor));
 
     let refuse = sine_scenario(60.0, "refuse", true, 1.0);
-    let error = power_guard::guard(&refuse, &built).unwrap_err().to_string();
+    let error = ScanPlan::new(&refuse).unwrap_err().to_string();
     println!("{error}");
     for needed in [
         "\"kind\":\"sine\"",
@@ -116,8 +118,7 @@ fn a_full_range_sine_over_the_limit_is_shrunk_or_refused_with_the_numbers() {
     assert!(error.contains("refuse"), "{error}");
 
     let off = sine_scenario(60.0, "off", true, 1.0);
-    let guarded = power_guard::guard(&off, &built).unwrap();
-    assert_eq!(guarded.trajectory, off.trajectory);
+    assert_eq!(ScanPlan::new(&off).unwrap().trajectory, off.trajectory);
 }
 
 /// The amplitude of the component at `f_hz` of `x` sampled every `period_s`: a single-bin

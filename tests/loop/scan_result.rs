@@ -34,20 +34,29 @@ fn duplo_stud_height_tracking_and_recordings() {
     );
     assert!(std < HEIGHT_STD_LIMIT_MM, "stud height std {std} mm");
 
-    // PID at 52 Hz: the tracking error is a fraction of the amplitude, never the amplitude.
-    let alpha_rel = number(&report, "/tracking_error/second_half/alpha/rms_relative");
-    let beta_rel = number(&report, "/tracking_error/second_half/beta/rms_relative");
-    assert!(
-        alpha_rel > 0.0 && alpha_rel < 0.25,
-        "alpha rms error / amplitude = {alpha_rel}"
-    );
-    assert!(
-        beta_rel > 0.0 && beta_rel < 0.1,
-        "beta rms error / amplitude = {beta_rel}"
-    );
+    // After the lead-in the PID tracks as the nominal loop predicts (alpha, 52 Hz: 9.0 %
+    // against 8.9 %); beta (27 Hz, 1.0 % against 0.83 %) also carries alpha's cross-talk,
+    // which the one-axis prediction leaves out. Too good fails as well as too bad.
+    for (axis, band) in [("alpha", (0.97, 1.10)), ("beta", (1.0, 1.4))] {
+        let measured = number(
+            &report,
+            &format!("/tracking_error/frame/{axis}/rms_relative"),
+        );
+        let predicted = number(
+            &report,
+            &format!("/predicted_tracking_error/{axis}_rms_relative"),
+        );
+        assert!(
+            (band.0..=band.1).contains(&(measured / predicted)),
+            "{axis}: measured {measured}, predicted {predicted}, band {band:?}"
+        );
+    }
+    assert_eq!(number(&report, "/periods/saturated_in_frame"), 0.0);
 
+    // 1 s of lead-in (the PID's settling, whole 1 s Lissajous frames), then 0.25 s recorded.
     let periods = number(&report, "/periods/done") as usize;
-    assert_eq!(periods, 5000);
+    assert_eq!(periods, 25_000);
+    assert_eq!(number(&report, "/frame/start_s"), 1.0);
     let mirror = decode_candump(&out.path().join("fsm.log"));
     assert_eq!(mirror.angle_seqs.len(), periods);
     assert_eq!(mirror.command_seqs.len(), periods);

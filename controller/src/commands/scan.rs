@@ -36,6 +36,9 @@ pub struct Args {
     /// Missed periods before a link timeout, instead of the scenario's.
     #[arg(long)]
     watchdog_periods: Option<u32>,
+    /// A fixed lead-in before the recorded frame instead of the scenario's, in seconds.
+    #[arg(long)]
+    lead_in_s: Option<f64>,
     /// Do not start the emulator: the nodes on --fsm / --sensor are already there (real
     /// hardware, or an emulator started by hand).
     #[arg(long)]
@@ -71,6 +74,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }),
         duration_s: args.duration_s,
         watchdog_periods: args.watchdog_periods,
+        lead_in_s: args.lead_in_s,
         no_emulator: args.no_emulator,
     };
     let end = run_scan(&scenario, &options)
@@ -91,18 +95,32 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
 }
 
 fn summary_text(report: &serde_json::Value, out_dir: &std::path::Path) -> String {
-    let tracking = &report["tracking_error"]["second_half"];
+    let tracking = &report["tracking_error"]["frame"];
+    let predicted = &report["predicted_tracking_error"];
     let imaging = &report["imaging"];
     let feature = &imaging["feature"];
+    let percent = |value: &serde_json::Value| {
+        value
+            .as_f64()
+            .map_or_else(|| "-".to_owned(), |v| format!("{:.2} %", 100.0 * v))
+    };
     let mut text = format!(
-        "scan {}: {} of {} periods, {} points\n\
-         tracking error (second half, rms): alpha {:.2} urad, beta {:.2} urad\n",
+        "scan {}: {} of {} periods ({:.3} s lead-in, frame from {:.3} s for {:.3} s), {} points\n\
+         tracking error over the frame (rms / peak): alpha {} (predicted {}), beta {} \
+         (predicted {})\n",
         report["scenario"]["name"].as_str().unwrap_or("?"),
         report["periods"]["done"],
         report["periods"]["planned"],
+        report["frame"]["lead_in"]["duration_s"]
+            .as_f64()
+            .unwrap_or(0.0),
+        report["frame"]["start_s"].as_f64().unwrap_or(0.0),
+        report["frame"]["duration_s"].as_f64().unwrap_or(0.0),
         imaging["points"].as_u64().unwrap_or(0),
-        tracking["alpha"]["rms_urad"].as_f64().unwrap_or(f64::NAN),
-        tracking["beta"]["rms_urad"].as_f64().unwrap_or(f64::NAN),
+        percent(&tracking["alpha"]["rms_relative"]),
+        percent(&predicted["alpha_rms_relative"]),
+        percent(&tracking["beta"]["rms_relative"]),
+        percent(&predicted["beta_rms_relative"]),
     );
     if let Some(height) = feature["height_mm"].as_f64() {
         text += &format!(

@@ -64,6 +64,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             slow_axis: args.slow_axis,
             alpha_amplitude_rad: full,
             beta_amplitude_rad: full,
+            fast_max_harmonic: None,
         },
         (_, _, Some(path)) => {
             let text = std::fs::read_to_string(path)

@@ -103,8 +103,11 @@ impl Imaging {
     /// plane-subtracted) after `progressive_steps` equal parts of `frame` and scores each
     /// against `truth` when given (coverage only without): see [`progressive_errors`] for the
     /// figures. The last checkpoint is the whole frame; checkpoint times are counted from the
-    /// frame's start. Keeps `frame` (the snapshots' time base) and `truth` (the profiles'
-    /// true surface) for [`write_outputs`].
+    /// frame's start. The whole-image figures are of the preview a person sees: missing cells
+    /// filled as the options say, or from the nearest measured cell when they say none (a
+    /// Lissajous frame's early overview against a raster's first lines, the paper's Fig. 6).
+    /// Keeps `frame` (the snapshots' time base) and `truth` (the profiles' true surface) for
+    /// [`write_outputs`].
     pub fn score_progressive(&mut self, truth: Option<&TrueScene>, frame: ScanFrame) {
         let steps = self.options.progressive_steps;
         let checkpoints: Vec<f64> = (1..=steps)
@@ -114,7 +117,10 @@ impl Imaging {
             &self.reconstruction.cloud.points,
             self.map.spec,
             self.options.grid,
-            self.options.fill,
+            match self.options.fill {
+                FillMethod::None => FillMethod::Nearest,
+                fill => fill,
+            },
             &checkpoints,
             |x, y| truth.and_then(|t| t.z_mm(x, y)),
         );

@@ -81,10 +81,14 @@ pub struct LoopRecord {
     pub tracking: TrackingRecorder,
     /// Periods completed.
     pub periods_done: u64,
-    /// Periods asked for.
+    /// Periods asked for: the lead-in's and the recorded frame's.
     pub periods_planned: u64,
+    /// Periods of lead-in before the recorded frame ([`super::lead_in`]).
+    pub lead_in_periods: u64,
     /// Periods in which the coil command was clipped.
     pub saturated_periods: u64,
+    /// Of those, the ones in the lead-in (lockstep; real time counts none there).
+    pub saturated_in_lead_in: u64,
     /// Why the run stopped early, if it did.
     pub stopped_by: Option<LoopError>,
     /// Real time only: the controller's side of the timing.
@@ -105,12 +109,21 @@ impl LoopRecord {
             tracking: TrackingRecorder::default(),
             periods_done: 0,
             periods_planned: periods,
+            lead_in_periods: 0,
             saturated_periods: 0,
+            saturated_in_lead_in: 0,
             stopped_by: None,
             controller_timing: None,
             loop_epoch: None,
             power_backoff: None,
         }
+    }
+
+    /// The record of a loop whose first `lead_in_periods` periods were the lead-in.
+    #[must_use]
+    pub fn with_lead_in(mut self, lead_in_periods: u64) -> LoopRecord {
+        self.lead_in_periods = lead_in_periods;
+        self
     }
 
     /// Records reading `k` (the angles at loop time `(k + 1) * period`) against the reference
@@ -235,6 +248,14 @@ impl<'a> HostLoop<'a> {
         }
     }
 
+    /// The same loop, its first `lead_in_periods` periods being the lead-in before the recorded
+    /// frame (the record says so; the loop runs them alike).
+    #[must_use]
+    pub fn with_lead_in(mut self, lead_in_periods: u64) -> HostLoop<'a> {
+        self.record = self.record.with_lead_in(lead_in_periods);
+        self
+    }
+
     /// The same loop, backing off the reference when the node reports its power limit.
     #[must_use]
     pub fn with_backoff(mut self, backoff: PowerBackoff) -> HostLoop<'a> {
@@ -250,6 +271,9 @@ impl<'a> HostLoop<'a> {
                 self.next_action()
             }
             Phase::Start(k) => {
+                if k == self.record.lead_in_periods {
+                    self.record.saturated_in_lead_in = self.controller.saturated_periods();
+                }
                 let scale = self.backoff.scale_at(k);
                 let reference = self.trajectory.reference_rad(k as f64 * self.period_s);
                 let reference = SensingPair {

@@ -15,6 +15,8 @@
 //! - [`bus_load`]: refusing a loop that cannot fit on a link's bit rate.
 //! - [`lockstep`], [`realtime`]: the two loops.
 //! - [`interrupt`]: Ctrl-C, SIGTERM and SIGHUP stop the loop like any early stop.
+//! - [`plan`]: what a scan runs, worked out before its links open: controller, power check,
+//!   [`lead_in`] before the recorded frame, predicted tracking error.
 //! - [`pairing`]: distances with angles by the sensor's own time.
 //! - [`tracking`]: reference against measured angles.
 //! - [`output`]: report.json, PLY, height map, plots.
@@ -30,10 +32,12 @@ pub mod emulator_process;
 pub mod host_inbox;
 pub mod host_loop;
 pub mod interrupt;
+pub mod lead_in;
 pub mod lockstep;
 pub mod mirror_link;
 pub mod output;
 pub mod pairing;
+pub mod plan;
 pub mod plant_link;
 pub mod power_backoff;
 pub mod power_guard;
@@ -55,8 +59,10 @@ use scanhil_protocol::link::{CanCapture, CanLink, CaptureClock, PtyPair, Virtual
 
 use emulator_process::{EmulatorProcess, locate_emulator};
 use host_loop::HostLoop;
+use lead_in::LeadIn;
 use mirror_link::MirrorLink;
 use pairing::SensorClock;
+use plan::ScanPlan;
 use scenario::{NodeLink, Scenario, TimingMode};
 use sensor_link::SensorLink;
 
@@ -81,6 +87,8 @@ pub struct ScanOptions {
     pub duration_s: Option<f64>,
     /// Overrides the scenario's watchdog periods.
     pub watchdog_periods: Option<u32>,
+    /// Overrides the scenario's lead-in with a fixed one, s.
+    pub lead_in_s: Option<f64>,
     /// Do not start the emulator (the nodes are already on the links).
     pub no_emulator: bool,
 }
@@ -125,18 +133,31 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         scenario.duration_s = duration_s;
     }
     if let Some(periods) = options.watchdog_periods {
-        scenario.timing.watchdog_periods = periods.max(1);
+        scenario.timing.watchdog_periods = periods;
+    }
+    if let Some(duration_s) = options.lead_in_s {
+        scenario.lead_in = LeadIn::Fixed { duration_s };
     }
     if options.no_emulator {
         scenario.links.spawn_emulator = false;
     }
-    let mut controller = scenario.build_controller()?;
-    let guarded = power_guard::guard(&scenario, &controller)?;
-    scenario.trajectory = guarded.trajectory.clone();
+    // The overrides pass the same checks as the file.
+    scenario.check()?;
+    let plan = ScanPlan::new(&scenario)?;
+    // What runs (and is reported) is the trajectory after the power check.
+    scenario.trajectory = plan.trajectory.clone();
+    let ScanPlan {
+        mut controller,
+        backoff,
+        summary: plan_summary,
+        ..
+    } = plan;
+    let periods =
+        plan_summary.lead_in.periods + (scenario.duration_s / controller.period_s()).round() as u64;
+    let lead_in_periods = plan_summary.lead_in.periods;
     let rig = &scenario.rig;
     let period_s = controller.period_s();
     let sensor_rate_hz = rig.sensor.map(|sensor| sensor.measuring_rate_hz);
-    let periods = (scenario.duration_s / period_s).round() as u64;
     bus_load::check(&scenario, sensor_rate_hz.unwrap_or(0.0), period_s)?;
     std::fs::create_dir_all(&options.out_dir)
         .with_context(|| format!("creating {}", options.out_dir.display()))?;
@@ -157,7 +178,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             seed: scenario.seed,
             timing: scenario.timing,
             period_s,
-            duration_s: scenario.duration_s,
+            duration_s: periods as f64 * period_s,
             record_dir: Some(out_dir.clone()),
             sensor_expectation: rig.sensor,
         };
@@ -173,7 +194,8 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
                     periods,
                     links.mirror.take_inbox(),
                 )
-                .with_backoff(guarded.backoff.clone());
+                .with_lead_in(lead_in_periods)
+                .with_backoff(backoff);
                 lockstep::run(
                     &mut links.mirror,
                     &mut links.sensor,
@@ -183,18 +205,17 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
                 )
                 .await
             }
-            TimingMode::Realtime => {
-                realtime::run(
-                    &mut links.mirror,
-                    &mut links.sensor,
-                    &mut controller,
-                    &scenario.trajectory,
-                    periods,
-                    &progress,
-                    &mut interrupt,
-                )
-                .await
-            }
+            TimingMode::Realtime => realtime::run(
+                &mut links.mirror,
+                &mut links.sensor,
+                &mut controller,
+                &scenario.trajectory,
+                periods,
+                &progress,
+                &mut interrupt,
+            )
+            .await
+            .with_lead_in(lead_in_periods),
         };
         progress.finish();
         let can_distances = links.mirror.take_distances();
@@ -222,12 +243,17 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             sensor_setup: links.sensor_setup,
             emulator_summary,
             run_time_s: started.elapsed().as_secs_f64(),
-            power: guarded.check.clone(),
         })
     })?;
     let declared = sensor_rate_hz
         .and_then(|rate| declared_sensor_clock(rate, outcome.emulator_summary.as_ref()));
-    output::write(&scenario, &outcome, declared, &options.out_dir)
+    output::write(
+        &scenario,
+        &plan_summary,
+        &outcome,
+        declared,
+        &options.out_dir,
+    )
 }
 
 /// What to connect to: the nodes' links, and how to start the emulator for emulated nodes.

@@ -23,9 +23,10 @@ use super::ScanEnd;
 use super::lockstep::LoopRecord;
 use super::mirror_link::{MirrorLinkCounters, NodeEvent};
 use super::pairing::{CounterUnwrapper, SensorClock};
-use super::power_guard::PowerCheck;
+use super::plan::PlanSummary;
 use super::scenario::Scenario;
 use super::sensor_link::{CountedSample, ILD_COUNTER_MODULUS, SensorCounters};
+use super::tracking::TrackingSummary;
 use crate::imaging::grid::GridMethod;
 use crate::imaging::pipeline::{ImagingOptions, image_samples, write_outputs};
 use crate::imaging::ply::PlyEncoding;
@@ -61,8 +62,6 @@ pub struct RunData {
     /// Wall-clock time from opening the links (or starting the in-process loop) to the end
     /// of the loop, s.
     pub run_time_s: f64,
-    /// The power check before the run (None: not estimated).
-    pub power: Option<PowerCheck>,
 }
 
 /// Images the run with the one imaging pipeline (the rig's geometry and calibration) and
@@ -72,6 +71,7 @@ pub struct RunData {
 /// A file that cannot be written, a truth scene that cannot be read.
 pub fn write(
     scenario: &Scenario,
+    plan: &PlanSummary,
     run: &RunData,
     clock: Option<SensorClock>,
     out_dir: &Path,
@@ -99,12 +99,23 @@ pub fn write(
             counter_zero_s: 0.0,
         },
     };
+    let period_s = record.angles.period_s();
+    // The recorded frame: after the lead-in, to the last period done.
+    let frame = ScanFrame {
+        start_s: record.lead_in_periods as f64 * period_s,
+        length_s: record.periods_done.saturating_sub(record.lead_in_periods) as f64 * period_s,
+    };
     let mut unpaired = 0u64;
+    let mut in_lead_in = 0u64;
     let mut missing_by_reason: BTreeMap<String, usize> = BTreeMap::new();
     let samples: Vec<ScanSample> = counted
         .iter()
         .filter_map(|sample| {
             let t_s = clock.instant_s(sample.counter);
+            if t_s < frame.start_s {
+                in_lead_in += 1;
+                return None;
+            }
             let Some(angles) = record.angles.at(t_s) else {
                 unpaired += 1;
                 return None;
@@ -146,10 +157,8 @@ pub fn write(
         progressive_steps: scenario.imaging.progressive_steps,
         ..ImagingOptions::default()
     };
-    let scan_time_s = record.periods_done as f64 * record.angles.period_s();
     let imaging = if samples.iter().any(|s| s.z_meas_mm.is_some()) {
         let mut imaging = image_samples(&samples, &options).context("imaging the scan")?;
-        let frame = ScanFrame::from_first_sample(samples.iter().map(|s| s.t_s), scan_time_s);
         imaging.score_progressive(truth.as_ref(), frame);
         Some(
             write_outputs(
@@ -163,7 +172,8 @@ pub fn write(
     } else {
         None
     };
-    write_tracking_plot(record, out_dir)?;
+    let tracking = record.tracking.summary(record.lead_in_periods, period_s);
+    write_tracking_plot(record, &tracking, plan, out_dir)?;
     let end = ScanEnd::of(record);
     let figures = scenario.trajectory.figures(imaging.as_ref().map(|m| {
         (
@@ -194,19 +204,27 @@ pub fn write(
             "done": record.periods_done,
             "period_s": record.angles.period_s(),
             "saturated": record.saturated_periods,
+            "saturated_in_frame": record.saturated_periods - record.saturated_in_lead_in,
         },
         "timing": {
             "mode": scenario.timing.mode,
             "controller": record.controller_timing,
             "emulator": run.emulator_summary.as_ref().map(|e| e["summary"]["timing"].clone()),
         },
-        "tracking_error": record.tracking.summary(),
+        "frame": {
+            "start_s": frame.start_s,
+            "duration_s": frame.length_s,
+            "lead_in": plan.lead_in,
+        },
+        "tracking_error": tracking,
+        "predicted_tracking_error": plan.predicted_tracking,
         "sensor_setup": run.sensor_setup,
-        "power": { "check": run.power, "backoff": record.power_backoff },
+        "power": { "check": plan.power, "backoff": record.power_backoff },
         "trajectory": figures,
         "samples": {
             "sensor_samples": counted.len(),
             "paired": samples.len(),
+            "in_the_lead_in": in_lead_in,
             "outside_the_angle_record": unpaired,
             "sensor_clock": clock,
         },
@@ -251,11 +269,21 @@ fn estimate_sensor_clock(
     }
 }
 
-/// `tracking.svg`: the measured angles and the tracking error against loop time.
-fn write_tracking_plot(record: &LoopRecord, out_dir: &Path) -> anyhow::Result<()> {
+/// `tracking.svg`: the measured angles, the tracking error, and the relative error per window
+/// (log scale, with the nominal loop's steady-state prediction) against loop time; the
+/// recorded frame's start is marked in each panel.
+fn write_tracking_plot(
+    record: &LoopRecord,
+    tracking: &TrackingSummary,
+    plan: &PlanSummary,
+    out_dir: &Path,
+) -> anyhow::Result<()> {
     let period_s = record.angles.period_s();
     let readings = record.angles.readings_rad();
     let errors = record.tracking.errors_rad();
+    if readings.is_empty() {
+        return Ok(());
+    }
     let stride = (readings.len() / 4000).max(1);
     let series = |label: &str, f: &dyn Fn(usize) -> f64| Series {
         label: label.into(),
@@ -265,32 +293,91 @@ fn write_tracking_plot(record: &LoopRecord, out_dir: &Path) -> anyhow::Result<()
             .collect(),
         markers: false,
     };
-    if !readings.is_empty() {
-        let charts = [
-            Chart {
-                title: "Measured mirror angles".into(),
-                x_label: "loop time (s)".into(),
-                y_label: "angle (mrad)".into(),
-                x_axis: Axis::Linear,
-                y_axis: Axis::Linear,
-                series: vec![
-                    series("alpha", &|k| readings[k].alpha * 1e3),
-                    series("beta", &|k| readings[k].beta * 1e3),
-                ],
-            },
-            Chart {
-                title: "Tracking error (measured - reference)".into(),
-                x_label: "loop time (s)".into(),
-                y_label: "error (urad)".into(),
-                x_axis: Axis::Linear,
-                y_axis: Axis::Linear,
-                series: vec![
-                    series("alpha", &|k| errors[k].alpha * 1e6),
-                    series("beta", &|k| errors[k].beta * 1e6),
-                ],
-            },
-        ];
-        draw_charts(&out_dir.join("tracking.svg"), &charts).context("writing tracking.svg")?;
+    let frame_start_s = record.lead_in_periods as f64 * period_s;
+    // A vertical line at the frame's start spanning `values`, when there is a lead-in.
+    let frame_marker = |values: &mut dyn Iterator<Item = f64>| {
+        let (low, high) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+            (lo.min(v), hi.max(v))
+        });
+        (record.lead_in_periods > 0 && low < high).then(|| Series {
+            label: "frame start".into(),
+            points: vec![(frame_start_s, low), (frame_start_s, high)],
+            markers: false,
+        })
+    };
+    let angles = vec![
+        series("alpha", &|k| readings[k].alpha * 1e3),
+        series("beta", &|k| readings[k].beta * 1e3),
+    ];
+    let error_series = vec![
+        series("alpha", &|k| errors[k].alpha * 1e6),
+        series("beta", &|k| errors[k].beta * 1e6),
+    ];
+    let window = |label: &str, pick: fn(&super::tracking::WindowError) -> f64| Series {
+        label: label.into(),
+        points: tracking
+            .windows
+            .iter()
+            .map(|w| (w.start_s, pick(w)))
+            .filter(|(_, v)| *v > 0.0)
+            .collect(),
+        markers: true,
+    };
+    let mut windows = vec![
+        window("alpha", |w| w.alpha_rms_relative),
+        window("beta", |w| w.beta_rms_relative),
+    ];
+    let end_s = readings.len() as f64 * period_s;
+    let predicted = plan.predicted_tracking;
+    for (label, value) in [
+        ("alpha predicted", predicted.alpha_rms_relative),
+        ("beta predicted", predicted.beta_rms_relative),
+    ] {
+        if let Some(value) = value.filter(|v| *v > 0.0) {
+            windows.push(Series {
+                label: label.into(),
+                points: vec![(0.0, value), (end_s, value)],
+                markers: false,
+            });
+        }
     }
-    Ok(())
+    let with_marker = |mut lines: Vec<Series>| {
+        let mut values = lines.iter().flat_map(|s| s.points.iter().map(|p| p.1));
+        if let Some(marker) = frame_marker(&mut values) {
+            lines.push(marker);
+        }
+        lines
+    };
+    let mut charts = vec![
+        Chart {
+            title: "Measured mirror angles".into(),
+            x_label: "loop time (s)".into(),
+            y_label: "angle (mrad)".into(),
+            x_axis: Axis::Linear,
+            y_axis: Axis::Linear,
+            series: with_marker(angles),
+        },
+        Chart {
+            title: "Tracking error (measured - reference)".into(),
+            x_label: "loop time (s)".into(),
+            y_label: "error (urad)".into(),
+            x_axis: Axis::Linear,
+            y_axis: Axis::Linear,
+            series: with_marker(error_series),
+        },
+    ];
+    if windows.iter().any(|s| !s.points.is_empty()) {
+        charts.push(Chart {
+            title: format!(
+                "Relative rms error per {} ms window",
+                super::tracking::WINDOW_S * 1e3
+            ),
+            x_label: "loop time (s)".into(),
+            y_label: "rms error / reference peak".into(),
+            x_axis: Axis::Linear,
+            y_axis: Axis::Log,
+            series: with_marker(windows),
+        });
+    }
+    draw_charts(&out_dir.join("tracking.svg"), &charts).context("writing tracking.svg")
 }

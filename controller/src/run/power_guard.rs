@@ -17,6 +17,7 @@ use serde::{Deserialize, Serialize};
 
 use super::power_backoff::PowerBackoff;
 use super::scenario::Scenario;
+use crate::loop_analysis::NominalLoop;
 use crate::power_budget::{PowerEstimate, estimate, loop_effort, shrink_factor};
 use crate::scan_controller::ScanController;
 use crate::settings::ControllerSettings;
@@ -82,6 +83,8 @@ pub struct PowerCheck {
     pub limit_w: f64,
     /// `margin x limit`, W.
     pub budget_w: f64,
+    /// `margin x` the rig's amplifier current limit, A (the peak coil current allowed).
+    pub current_budget_a: Option<f64>,
     /// The trajectory as written.
     pub before: PowerEstimate,
     /// The amplitude factor applied (1: unchanged).
@@ -104,12 +107,15 @@ pub struct Guarded {
 /// Estimates `scenario`'s trajectory under `controller` and applies its power policy.
 ///
 /// # Errors
-/// Under `refuse`, an estimate over `margin x limit` (trajectory, estimate and limit named);
-/// a controller file that does not load.
-pub fn guard(scenario: &Scenario, controller: &ScanController) -> anyhow::Result<Guarded> {
+/// Under `refuse`, an estimate over `margin x limit` (trajectory, estimate and limit named).
+pub fn guard(
+    scenario: &Scenario,
+    settings: &ControllerSettings,
+    controller: &ScanController,
+    nominal: &NominalLoop,
+) -> anyhow::Result<Guarded> {
     let config = scenario.power;
     let trajectory = scenario.trajectory.clone();
-    let settings = ControllerSettings::load(&scenario.controller)?;
     let period_s = controller.period_s();
     let resonance_hz = settings.plant.natural_freq_rad_s / std::f64::consts::TAU;
     let ramp_periods = PowerBackoff::ramp_periods_for(resonance_hz, period_s);
@@ -130,12 +136,16 @@ pub fn guard(scenario: &Scenario, controller: &ScanController) -> anyhow::Result
             backoff,
         });
     };
-    let nominal = settings.nominal_loop(controller.axis());
-    let effort = loop_effort(&nominal);
+    let effort = loop_effort(nominal);
     let nyquist_hz = 0.5 / period_s;
     let before = estimate(&trajectory, &mirror, &effort, nyquist_hz);
     let budget_w = config.margin * mirror.power_limit_w;
+    let current_budget_a = mirror
+        .amplifier_current_limit_a
+        .map(|limit| config.margin * limit);
     let over = before.mean_power_w > budget_w;
+    let peak_a = before.peak_coil_current_bound_a;
+    let over_current = current_budget_a.is_some_and(|budget| peak_a > budget);
     let described = describe(&trajectory);
     let factor = match config.policy {
         PowerPolicy::Refuse if over => bail!(
@@ -148,7 +158,18 @@ pub fn guard(scenario: &Scenario, controller: &ScanController) -> anyhow::Result
             mirror.power_limit_w,
             scenario.rig.path.display()
         ),
-        PowerPolicy::Shrink => shrink_factor(before.mean_power_w, budget_w),
+        PowerPolicy::Refuse if over_current => bail!(
+            "{}: trajectory {described} needs up to an estimated {peak_a:.2} A of coil current \
+             at steady state, over {:.2} A ({} x the amplifiers' limit of rig {}); policy \
+             `refuse`",
+            scenario.path.display(),
+            current_budget_a.unwrap_or(f64::NAN),
+            config.margin,
+            scenario.rig.path.display()
+        ),
+        // Power goes with the amplitude squared, the peak current with the amplitude.
+        PowerPolicy::Shrink => shrink_factor(before.mean_power_w, budget_w)
+            .min(current_budget_a.map_or(1.0, |budget| (budget / peak_a).min(1.0))),
         PowerPolicy::Refuse | PowerPolicy::Off => 1.0,
     };
     let trajectory = if factor < 1.0 {
@@ -159,11 +180,15 @@ pub fn guard(scenario: &Scenario, controller: &ScanController) -> anyhow::Result
     let after = estimate(&trajectory, &mirror, &effort, nyquist_hz);
     if factor < 1.0 {
         eprintln!(
-            "power: trajectory {described} needs an estimated {:.2} W > {:.2} W ({} x {} W): \
-             amplitudes scaled by {factor:.4} to {:.2} W",
-            before.mean_power_w, budget_w, config.margin, mirror.power_limit_w, after.mean_power_w
+            "power: trajectory {described} needs an estimated {:.2} W (budget {budget_w:.2} W) \
+             and up to {peak_a:.2} A per coil (budget {}): amplitudes scaled by {factor:.4} to \
+             {:.2} W and {:.2} A",
+            before.mean_power_w,
+            current_budget_a.map_or_else(|| "none".to_owned(), |a| format!("{a:.2} A")),
+            after.mean_power_w,
+            after.peak_coil_current_bound_a,
         );
-    } else if over {
+    } else if over || over_current {
         eprintln!(
             "power: trajectory {described} needs an estimated {:.2} W > {:.2} W ({} x {} W); \
              policy `off`: it runs as written",
@@ -190,6 +215,7 @@ pub fn guard(scenario: &Scenario, controller: &ScanController) -> anyhow::Result
             coil_resistance_ohm: mirror.coil_resistance_ohm,
             limit_w: mirror.power_limit_w,
             budget_w,
+            current_budget_a,
             before,
             factor,
             after,

@@ -15,13 +15,15 @@ use std::path::{Path, PathBuf};
 use scanhil_geometry::GeometryModel;
 use serde::Deserialize;
 
+use super::lead_in::LeadIn;
 use super::power_guard::PowerConfig;
 use crate::imaging::feature::FeatureParams;
 use crate::imaging::pipeline::MAX_PROGRESSIVE_STEPS;
 use crate::rig::{Rig, RigError};
-use crate::scan_controller::ScanController;
-use crate::settings::ControllerSettings;
 use crate::trajectory::Trajectory;
+
+/// The longest scan a scenario may ask for, s (an hour of 20 kHz loop, 72 million periods).
+pub const MAX_DURATION_S: f64 = 3600.0;
 
 /// A loaded, checked scenario with absolute paths.
 #[derive(Debug, Clone)]
@@ -54,6 +56,8 @@ pub struct Scenario {
     pub imaging: ImagingConfig,
     /// The coil power policy ([`super::power_guard`]).
     pub power: PowerConfig,
+    /// How long the trajectory runs before the recorded frame ([`super::lead_in`]).
+    pub lead_in: LeadIn,
 }
 
 /// How the loop is clocked.
@@ -235,6 +239,8 @@ struct ScenarioFile {
     imaging: ImagingConfig,
     #[serde(default)]
     power: PowerConfig,
+    #[serde(default)]
+    lead_in: LeadIn,
 }
 
 impl Scenario {
@@ -262,72 +268,18 @@ impl Scenario {
                 column: err.column(),
                 message: err.to_string(),
             })?;
-        let invalid = |field: &'static str, reason: String| ScenarioError::Invalid {
-            path: origin.to_owned(),
-            field,
-            reason,
-        };
-        if !(file.duration_s.is_finite() && file.duration_s > 0.0) {
-            return Err(invalid(
-                "duration_s",
-                format!("{} s must be positive and finite", file.duration_s),
-            ));
-        }
-        if file.timing.watchdog_periods == 0 {
-            return Err(invalid(
-                "timing.watchdog_periods",
-                "must be at least 1".into(),
-            ));
-        }
-        let allowance = file.timing.lockstep_answer_allowance_s;
-        if !(allowance.is_finite() && allowance > 0.0) {
-            return Err(invalid(
-                "timing.lockstep_answer_allowance_s",
-                format!("{allowance} s must be positive and finite"),
-            ));
-        }
-        let pitch = file.imaging.pitch_mm;
-        if !(pitch.is_finite() && pitch > 0.0) {
-            return Err(invalid(
-                "imaging.pitch_mm",
-                format!("{pitch} mm must be positive and finite"),
-            ));
-        }
-        let steps = file.imaging.progressive_steps;
-        if !(1..=MAX_PROGRESSIVE_STEPS).contains(&steps) {
-            return Err(invalid(
-                "imaging.progressive_steps",
-                format!("{steps} is not between 1 and {MAX_PROGRESSIVE_STEPS}"),
-            ));
-        }
-        file.power
-            .check()
-            .map_err(|(field, reason)| invalid(field, reason))?;
         let base = origin.parent().unwrap_or(Path::new("."));
-        let scene = file.scene.map(|scene| base.join(scene));
-        let links_are_emulated = file.links.spawn_emulator
-            || file.links.fsm == NodeLink::Pty
-            || file.links.sensor == NodeLink::Pty;
-        if scene.is_none() && links_are_emulated {
-            return Err(invalid(
-                "scene",
-                "emulated devices (`pty` links or `spawn_emulator`) need the scene the \
-                 emulator serves; a scan of real devices sets both links to their URIs and \
-                 `spawn_emulator` to false"
-                    .into(),
-            ));
-        }
         let rig = Rig::load(&base.join(&file.rig)).map_err(|source| ScenarioError::Rig {
             path: origin.to_owned(),
             source,
         })?;
-        Ok(Scenario {
+        let scenario = Scenario {
             path: origin.to_owned(),
             name: file.name,
             description: file.description,
             rig,
             truth: file.truth.map(|truth| base.join(truth)),
-            scene,
+            scene: file.scene.map(|scene| base.join(scene)),
             controller: base.join(file.controller),
             trajectory: file.trajectory,
             duration_s: file.duration_s,
@@ -336,29 +288,81 @@ impl Scenario {
             links: file.links,
             imaging: file.imaging,
             power: file.power,
-        })
+            lead_in: file.lead_in,
+        };
+        scenario.check()?;
+        Ok(scenario)
     }
 
-    /// Loads the scenario's controller settings, discretises them and checks that they run at
-    /// the rig's control rate.
+    /// Checks every field's value; `scanhil scan` calls it again after its command-line
+    /// overrides, so an override passes the same validation as the file.
     ///
     /// # Errors
-    /// Settings that do not load or discretise stably, a rate other than the rig's (both
-    /// named).
-    pub fn build_controller(&self) -> anyhow::Result<ScanController> {
-        let controller = ControllerSettings::load(&self.controller)?.build()?;
-        let period_s = controller.period_s();
-        if (self.rig.period_s() - period_s).abs() > 1e-12 * period_s {
-            anyhow::bail!(
-                "{}: the controller {} runs at {:.1} Hz but rig {} at {:.1} Hz",
-                self.path.display(),
-                self.controller.display(),
-                1.0 / period_s,
-                self.rig.path.display(),
-                self.rig.control_rate_hz
-            );
+    /// [`ScenarioError::Invalid`] naming the scenario file and the field.
+    pub fn check(&self) -> Result<(), ScenarioError> {
+        let invalid = |field: &'static str, reason: String| ScenarioError::Invalid {
+            path: self.path.clone(),
+            field,
+            reason,
+        };
+        if !(self.duration_s.is_finite()
+            && self.duration_s > 0.0
+            && self.duration_s <= MAX_DURATION_S)
+        {
+            return Err(invalid(
+                "duration_s",
+                format!(
+                    "{} s must be positive, finite and at most {MAX_DURATION_S} s",
+                    self.duration_s
+                ),
+            ));
         }
-        Ok(controller)
+        if self.timing.watchdog_periods == 0 {
+            return Err(invalid(
+                "timing.watchdog_periods",
+                "must be at least 1".into(),
+            ));
+        }
+        let allowance = self.timing.lockstep_answer_allowance_s;
+        if !(allowance.is_finite() && allowance > 0.0) {
+            return Err(invalid(
+                "timing.lockstep_answer_allowance_s",
+                format!("{allowance} s must be positive and finite"),
+            ));
+        }
+        let pitch = self.imaging.pitch_mm;
+        if !(pitch.is_finite() && pitch > 0.0) {
+            return Err(invalid(
+                "imaging.pitch_mm",
+                format!("{pitch} mm must be positive and finite"),
+            ));
+        }
+        let steps = self.imaging.progressive_steps;
+        if !(1..=MAX_PROGRESSIVE_STEPS).contains(&steps) {
+            return Err(invalid(
+                "imaging.progressive_steps",
+                format!("{steps} is not between 1 and {MAX_PROGRESSIVE_STEPS}"),
+            ));
+        }
+        self.power
+            .check()
+            .map_err(|(field, reason)| invalid(field, reason))?;
+        self.lead_in
+            .check()
+            .map_err(|(field, reason)| invalid(field, reason))?;
+        let links_are_emulated = self.links.spawn_emulator
+            || self.links.fsm == NodeLink::Pty
+            || self.links.sensor == NodeLink::Pty;
+        if self.scene.is_none() && links_are_emulated {
+            return Err(invalid(
+                "scene",
+                "emulated devices (`pty` links or `spawn_emulator`) need the scene the \
+                 emulator serves; a scan of real devices sets both links to their URIs and \
+                 `spawn_emulator` to false"
+                    .into(),
+            ));
+        }
+        Ok(())
     }
 
     /// The scene file whose surface is the truth: `truth`, else the emulator's `scene`.

@@ -1,6 +1,7 @@
 //! Tracking error: how far the measured mirror angles were from the reference, per sensing
-//! axis, over the whole run and over its second half (after the lightly damped mirror's start
-//! transient has had time to decay).
+//! axis: over the recorded frame (the steady-state figure), over the lead-in before it, over
+//! the whole run, and per window of [`WINDOW_S`] so the start-up transient can be seen
+//! decaying. Relative figures are the rms error over the reference's peak in the same stretch.
 
 use scanhil_protocol::plant_units::SensingPair;
 
@@ -26,13 +27,31 @@ pub struct TrackingError {
     pub beta: AxisError,
 }
 
-/// Both stretches the report gives.
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+/// The length of a tracking window, s.
+pub const WINDOW_S: f64 = 0.05;
+
+/// The stretches the report gives.
+#[derive(Debug, Clone, PartialEq, Default, serde::Serialize)]
 pub struct TrackingSummary {
+    /// The recorded frame: the steady-state figure.
+    pub frame: TrackingError,
+    /// The lead-in before the frame (`None` without one).
+    pub lead_in: Option<TrackingError>,
     /// Every period of the run.
     pub whole_run: TrackingError,
-    /// The second half of the run.
-    pub second_half: TrackingError,
+    /// Consecutive windows of [`WINDOW_S`] over the whole run.
+    pub windows: Vec<WindowError>,
+}
+
+/// The relative tracking error over one window.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct WindowError {
+    /// The window's start in loop time, s.
+    pub start_s: f64,
+    /// Alpha's rms error over the reference's peak.
+    pub alpha_rms_relative: f64,
+    /// Beta's.
+    pub beta_rms_relative: f64,
 }
 
 /// Accumulates reference and measured angles period by period.
@@ -58,19 +77,38 @@ impl TrackingRecorder {
         &self.errors_rad
     }
 
-    /// The summary over the whole run and its second half.
+    /// The summary of a run whose first `lead_in_periods` periods were the lead-in, with
+    /// windows of [`WINDOW_S`] at `period_s`.
     #[must_use]
-    pub fn summary(&self) -> TrackingSummary {
-        let half = self.errors_rad.len() / 2;
+    pub fn summary(&self, lead_in_periods: u64, period_s: f64) -> TrackingSummary {
+        let n = self.errors_rad.len();
+        let split = usize::try_from(lead_in_periods)
+            .unwrap_or(usize::MAX)
+            .min(n);
+        let window = ((WINDOW_S / period_s).round() as usize).max(1);
+        let windows = (0..n)
+            .step_by(window)
+            .map(|from| {
+                let stretch = self.over(from..(from + window).min(n));
+                WindowError {
+                    // Reading k is the angle at (k + 1) periods.
+                    start_s: (from + 1) as f64 * period_s,
+                    alpha_rms_relative: stretch.alpha.rms_relative,
+                    beta_rms_relative: stretch.beta.rms_relative,
+                }
+            })
+            .collect();
         TrackingSummary {
-            whole_run: self.over(0),
-            second_half: self.over(half),
+            frame: self.over(split..n),
+            lead_in: (split > 0).then(|| self.over(0..split)),
+            whole_run: self.over(0..n),
+            windows,
         }
     }
 
-    fn over(&self, from: usize) -> TrackingError {
-        let errors = &self.errors_rad[from..];
-        let references = &self.references_rad[from..];
+    fn over(&self, periods: std::ops::Range<usize>) -> TrackingError {
+        let errors = &self.errors_rad[periods.clone()];
+        let references = &self.references_rad[periods];
         let axis = |error: fn(&SensingPair) -> f64| {
             let n = errors.len().max(1) as f64;
             let rms = (errors.iter().map(|e| error(e).powi(2)).sum::<f64>() / n).sqrt();
@@ -111,9 +149,15 @@ mod tests {
             };
             recorder.record(reference, measured);
         }
-        let summary = recorder.summary();
+        let summary = recorder.summary(1, 0.025);
         assert_eq!(summary.whole_run.periods, 4);
-        assert_eq!(summary.second_half.periods, 2);
+        assert_eq!(summary.frame.periods, 3);
+        assert_eq!(summary.lead_in.map(|l| l.periods), Some(1));
+        // Windows of 0.05 s at 0.025 s: two periods each.
+        assert_eq!(summary.windows.len(), 2);
+        assert!((summary.windows[1].start_s - 0.075).abs() < 1e-12);
+        assert!((summary.windows[1].alpha_rms_relative - 2e-6 / 3e-3).abs() < 1e-12);
+        assert!((summary.frame.alpha.rms_relative - 2e-6 / 3e-3).abs() < 1e-12);
         assert!((summary.whole_run.alpha.rms_urad - 2.0).abs() < 1e-9);
         assert!((summary.whole_run.beta.max_abs_urad - 1.0).abs() < 1e-9);
         assert!((summary.whole_run.alpha.rms_relative - 2e-6 / 3e-3).abs() < 1e-12);

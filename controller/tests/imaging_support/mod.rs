@@ -44,6 +44,7 @@ pub fn raster(t: f64) -> (f64, f64) {
         slow_axis: SensingAxis::Alpha,
         alpha_amplitude_rad: FULL_RANGE_RAD,
         beta_amplitude_rad: FULL_RANGE_RAD,
+        fast_max_harmonic: None,
     };
     angles(&raster, t)
 }

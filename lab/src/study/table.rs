@@ -31,7 +31,7 @@ pub struct Row {
     pub stud_height_mm: Option<f64>,
     /// Its standard deviation, mm.
     pub stud_std_mm: Option<f64>,
-    /// Tracking error, rms over the second half, relative to the reference's peak: alpha.
+    /// Tracking error over the recorded frame, rms relative to the reference's peak: alpha.
     pub tracking_rms_relative_alpha: Option<f64>,
     /// The same for beta.
     pub tracking_rms_relative_beta: Option<f64>,
@@ -91,8 +91,8 @@ impl Row {
             });
         row.stud_height_mm = number("/imaging/feature/height_mm");
         row.stud_std_mm = number("/imaging/feature/std_mm");
-        row.tracking_rms_relative_alpha = number("/tracking_error/second_half/alpha/rms_relative");
-        row.tracking_rms_relative_beta = number("/tracking_error/second_half/beta/rms_relative");
+        row.tracking_rms_relative_alpha = number("/tracking_error/frame/alpha/rms_relative");
+        row.tracking_rms_relative_beta = number("/tracking_error/frame/beta/rms_relative");
         row.coverage = number("/imaging/coverage_fraction");
         row.median_abs_error_mm = number("/imaging/truth_error/covered_median_abs_mm");
         row.run_time_s = number("/run_time_s");

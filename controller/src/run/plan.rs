@@ -1,0 +1,94 @@
+//! What a scan runs, worked out once before any link opens, by `scanhil scan` and the
+//! in-process loop alike: the controller built from its file and checked against the rig, the
+//! trajectory after the coil power check ([`super::power_guard`]), the lead-in before the
+//! recorded frame ([`super::lead_in`]), and the steady-state tracking error the nominal loop
+//! predicts for the frame ([`crate::steady_state`]).
+
+use super::lead_in::LeadInPlan;
+use super::power_backoff::PowerBackoff;
+use super::power_guard::{PowerCheck, guard};
+use super::scenario::Scenario;
+use crate::scan_controller::ScanController;
+use crate::settings::ControllerSettings;
+use crate::steady_state::{PredictedTracking, predict};
+use crate::trajectory::Trajectory;
+
+/// A scan's plan.
+#[derive(Debug)]
+pub struct ScanPlan {
+    /// The controller, discretised, checked stable, at the rig's rate.
+    pub controller: ScanController,
+    /// The trajectory that runs (amplitudes shrunk by the power check where it had to).
+    pub trajectory: Trajectory,
+    /// The host's back-off on the node's power limit.
+    pub backoff: PowerBackoff,
+    /// The frame's periods: the scenario's duration.
+    pub frame_periods: u64,
+    /// For the report.
+    pub summary: PlanSummary,
+}
+
+/// The plan's figures, for `report.json`.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct PlanSummary {
+    /// The lead-in before the recorded frame.
+    pub lead_in: LeadInPlan,
+    /// The coil power check (`None`: the rig states no mirror).
+    pub power: Option<PowerCheck>,
+    /// The frame's steady-state tracking error as the nominal loop predicts it.
+    pub predicted_tracking: PredictedTracking,
+}
+
+impl ScanPlan {
+    /// Plans `scenario`: loads and builds its controller (at the rig's rate), checks the coil
+    /// power, works out the lead-in and the prediction.
+    ///
+    /// # Errors
+    /// A controller file that does not load or discretise stably, a rate other than the
+    /// rig's (both named), a trajectory the power policy refuses.
+    pub fn new(scenario: &Scenario) -> anyhow::Result<ScanPlan> {
+        let settings = ControllerSettings::load(&scenario.controller)?;
+        let controller = settings.build()?;
+        let period_s = controller.period_s();
+        let rig = &scenario.rig;
+        if (rig.period_s() - period_s).abs() > 1e-12 * period_s {
+            anyhow::bail!(
+                "{}: the controller {} runs at {:.1} Hz but rig {} at {:.1} Hz",
+                scenario.path.display(),
+                scenario.controller.display(),
+                1.0 / period_s,
+                rig.path.display(),
+                rig.control_rate_hz
+            );
+        }
+        let nominal = settings.nominal_loop(controller.axis());
+        let guarded = guard(scenario, &settings, &controller, &nominal)?;
+        let lead_in = scenario.lead_in.plan(&nominal, &guarded.trajectory);
+        if lead_in.capped {
+            eprintln!(
+                "lead-in: the loop settles in {:.2} s, capped at {:.2} s by `lead_in.max_s`: \
+                 the recorded frame may hold some of the transient",
+                lead_in.settle_s.unwrap_or(f64::NAN),
+                lead_in.duration_s
+            );
+        }
+        let predicted_tracking = predict(&nominal, &guarded.trajectory);
+        Ok(ScanPlan {
+            controller,
+            trajectory: guarded.trajectory,
+            backoff: guarded.backoff,
+            frame_periods: (scenario.duration_s / period_s).round() as u64,
+            summary: PlanSummary {
+                lead_in,
+                power: guarded.check,
+                predicted_tracking,
+            },
+        })
+    }
+
+    /// Every period the loop runs: the lead-in's and the frame's.
+    #[must_use]
+    pub fn periods(&self) -> u64 {
+        self.summary.lead_in.periods + self.frame_periods
+    }
+}
