@@ -10,6 +10,9 @@ use scanhil_controller::run::scenario::{NodeLink, TimingConfig};
 use scanhil_controller::run::{LinkPlan, finish_emulator, open_links};
 
 /// Check a mirror node (and a sensor) against the loop protocol.
+/// The highest control rate conformance accepts, Hz (ten times the paper's 20 kHz).
+const MAX_RATE_HZ: f64 = 200_000.0;
+
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// The mirror node: `slcan:PATH[@BITRATE]`, `socketcan:IFACE`, or `pty` (start the
@@ -23,7 +26,7 @@ pub struct Args {
     /// The scene an emulated node serves.
     #[arg(long)]
     scene: Option<PathBuf>,
-    /// The control rate the device runs at, in Hz.
+    /// The control rate the device runs at, in Hz (at most [`MAX_RATE_HZ`]).
     #[arg(long, default_value_t = 20_000.0)]
     rate_hz: f64,
     /// Missed answers before a link timeout (also what the device is expected to use).
@@ -45,6 +48,21 @@ pub struct Args {
 /// # Errors
 /// Links that do not open; an emulated node without a scene; the JUnit file not writable.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    if !(args.rate_hz.is_finite() && args.rate_hz > 0.0 && args.rate_hz <= MAX_RATE_HZ) {
+        anyhow::bail!(
+            "--rate-hz {}: the control rate must be positive, finite and at most {MAX_RATE_HZ} Hz",
+            args.rate_hz
+        );
+    }
+    if !(args.answer_allowance_s.is_finite() && args.answer_allowance_s > 0.0) {
+        anyhow::bail!(
+            "--answer-allowance-s {}: must be positive and finite",
+            args.answer_allowance_s
+        );
+    }
+    if args.watchdog_periods == 0 {
+        anyhow::bail!("--watchdog-periods 0: at least one missed answer must be allowed");
+    }
     let fsm = NodeLink::parse(&args.fsm);
     let sensor = args.sensor.as_deref().map(NodeLink::parse);
     let emulated = fsm == NodeLink::Pty || sensor == Some(NodeLink::Pty);
