@@ -36,6 +36,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    die_quietly_on_a_closed_pipe();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Scan(args) => commands::scan::run(args),
@@ -54,4 +55,15 @@ fn main() -> ExitCode {
             ExitCode::FAILURE
         }
     }
+}
+
+/// A closed pipe on stdout (`scanhil analyze ... | head`) ends the program quietly, as it ends
+/// any Unix filter, instead of a panic in `println!` (Rust starts programs with SIGPIPE
+/// ignored). Writes to ptys, serial lines and CAN sockets raise no SIGPIPE, so the links'
+/// own errors are unchanged.
+fn die_quietly_on_a_closed_pipe() {
+    use nix::sys::signal::{SigHandler, Signal, signal};
+    // SAFETY: restoring a signal's default disposition at start-up, before any other thread
+    // exists, installs no handler code and races with nothing.
+    let _ = unsafe { signal(Signal::SIGPIPE, SigHandler::SigDfl) };
 }

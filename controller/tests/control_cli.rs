@@ -139,3 +139,32 @@ fn conformance_refuses_rates_and_allowances_that_cannot_run_instead_of_panicking
         assert!(!stderr.contains("panicked"), "{stderr}");
     }
 }
+
+#[test]
+fn a_closed_pipe_on_stdout_ends_the_program_quietly_not_with_a_panic() {
+    use std::os::unix::process::ExitStatusExt;
+    for args in [
+        vec![
+            "analyze",
+            "--controller",
+            fixture("pid-series.json").to_str().unwrap(),
+        ],
+        vec!["trajectory", "--lissajous", "52,27"],
+    ] {
+        let (reader, writer) = std::io::pipe().unwrap();
+        drop(reader);
+        let out = Command::new(env!("CARGO_BIN_EXE_scanhil"))
+            .args(&args)
+            .stdout(writer)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+        // Ended by SIGPIPE like any filter (13), or done before writing: never a panic's 101.
+        assert!(
+            out.status.signal() == Some(13) || out.status.success(),
+            "{args:?}: {:?} {stderr}",
+            out.status
+        );
+    }
+}
