@@ -18,6 +18,7 @@ use std::time::Duration;
 use anyhow::{Context, bail};
 use scanhil_controller::run::host_inbox::HostInbox;
 use scanhil_controller::run::host_loop::{HostAction, HostLoop, LoopError};
+use scanhil_controller::run::out_folder::OutputFolder;
 use scanhil_controller::run::output::{self, RunData};
 use scanhil_controller::run::pairing::SensorClock;
 use scanhil_controller::run::plan::{PlanSummary, ScanPlan};
@@ -128,9 +129,8 @@ pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProc
             scenario.path.display()
         );
     }
-    if let Some(dir) = out_dir {
-        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-    }
+    // Held to the end of the run, as `scanhil scan` holds its folder.
+    let _folder = out_dir.map(OutputFolder::claim).transpose()?;
     let mut transport = Transport::new(out_dir, serves_sensor, measuring_rate_hz)?;
     let mut node = MirrorNode::new(plant);
     let mut lockstep_node = LockstepNode::new(&mut node, DEFAULT_HEARTBEAT_HZ);

@@ -25,3 +25,5 @@ mod timing;
 mod rig_alone;
 // An interrupted scan (Ctrl-C, SIGTERM): zero current, C sent, outputs written, exit 3.
 mod interrupted;
+// The output folder: one scan at a time, no stale files after a re-scan.
+mod out_folder;

@@ -20,6 +20,8 @@
 //! - [`pairing`]: distances with angles by the sensor's own time.
 //! - [`tracking`]: reference against measured angles.
 //! - [`output`]: report.json, PLY, height map, plots.
+//! - [`out_folder`]: the output folder, locked for one scan and cleared of an earlier one's
+//!   files.
 //! - [`progress`]: the progress bar (terminal only).
 //! - [`power_guard`], [`power_backoff`]: the coil power check before a run (shrink, refuse)
 //!   and the back-off when the node's power limit acts.
@@ -35,6 +37,7 @@ pub mod interrupt;
 pub mod lead_in;
 pub mod lockstep;
 pub mod mirror_link;
+pub mod out_folder;
 pub mod output;
 pub mod pairing;
 pub mod plan;
@@ -159,8 +162,8 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
     let period_s = controller.period_s();
     let sensor_rate_hz = rig.sensor.map(|sensor| sensor.measuring_rate_hz);
     bus_load::check(&scenario, sensor_rate_hz.unwrap_or(0.0), period_s)?;
-    std::fs::create_dir_all(&options.out_dir)
-        .with_context(|| format!("creating {}", options.out_dir.display()))?;
+    // Held to the end of the scan: a second scan into this folder is refused meanwhile.
+    let _folder = out_folder::OutputFolder::claim(&options.out_dir)?;
 
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()

@@ -41,6 +41,8 @@ pub const FSM_INTERFACE: &str = "fsm";
 pub const SENSOR_CAPTURE: &str = "sensor.ild";
 /// The run report.
 pub const REPORT: &str = "report.json";
+/// The tracking plot.
+pub const TRACKING_SVG: &str = "tracking.svg";
 
 /// Everything the loop produced, before imaging.
 #[derive(Debug)]
@@ -379,5 +381,5 @@ fn write_tracking_plot(
             series: with_marker(windows),
         });
     }
-    draw_charts(&out_dir.join("tracking.svg"), &charts).context("writing tracking.svg")
+    draw_charts(&out_dir.join(TRACKING_SVG), &charts).context("writing tracking.svg")
 }

@@ -1,0 +1,98 @@
+//! The scan's output folder, claimed for one scan at a time: a lock file held for the whole
+//! scan (`.scanhil.lock`, an exclusive `flock`), so a second scan into the same folder is
+//! refused instead of splicing its recordings into the first's; and the files an earlier scan
+//! wrote there are removed first, so a re-scan never leaves stale outputs beside a new report.
+//! Other files in the folder are left alone.
+
+use std::fs::File;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use nix::fcntl::{Flock, FlockArg};
+
+use super::output::{FSM_LOG, REPORT, SENSOR_CAPTURE, TRACKING_SVG};
+use crate::imaging::pipeline::{
+    HEIGHT_MAP_CSV, HEIGHT_MAP_PNG, POINTS_PLY, PROFILES_CSV, PROFILES_SVG, PROGRESSIVE_SVG,
+    SNAPSHOTS_PNG,
+};
+
+/// The lock file's name inside the folder.
+pub const LOCK_FILE: &str = ".scanhil.lock";
+
+/// Every file a scan writes into its folder.
+pub const SCAN_FILES: [&str; 11] = [
+    REPORT,
+    FSM_LOG,
+    SENSOR_CAPTURE,
+    TRACKING_SVG,
+    POINTS_PLY,
+    HEIGHT_MAP_PNG,
+    HEIGHT_MAP_CSV,
+    PROGRESSIVE_SVG,
+    SNAPSHOTS_PNG,
+    PROFILES_SVG,
+    PROFILES_CSV,
+];
+
+/// A claimed output folder; the claim ends when this is dropped.
+#[derive(Debug)]
+pub struct OutputFolder {
+    path: PathBuf,
+    _lock: Flock<File>,
+}
+
+impl OutputFolder {
+    /// Creates `path` if needed, locks it for this scan and removes an earlier scan's files.
+    ///
+    /// # Errors
+    /// A folder that cannot be created, a lock held by another scan (named with its process
+    /// id), a stale file that cannot be removed.
+    pub fn claim(path: &Path) -> anyhow::Result<OutputFolder> {
+        std::fs::create_dir_all(path).with_context(|| format!("creating {}", path.display()))?;
+        let lock_path = path.join(LOCK_FILE);
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .read(true)
+            .write(true)
+            .open(&lock_path)
+            .with_context(|| format!("opening {}", lock_path.display()))?;
+        let mut lock =
+            Flock::lock(file, FlockArg::LockExclusiveNonblock).map_err(|(file, _)| {
+                let holder = std::io::read_to_string(&file).unwrap_or_default();
+                anyhow::anyhow!(
+                    "{} is the output folder of another scan still running ({}); give another \
+                 --out",
+                    path.display(),
+                    holder.trim()
+                )
+            })?;
+        use std::io::{Seek, Write};
+        lock.set_len(0)
+            .and_then(|()| lock.rewind())
+            .and_then(|_| write!(lock, "process {}", std::process::id()))
+            .with_context(|| format!("writing {}", lock_path.display()))?;
+        for name in SCAN_FILES {
+            let stale = path.join(name);
+            match std::fs::remove_file(&stale) {
+                Ok(()) => {}
+                Err(error) if error.kind() == std::io::ErrorKind::NotFound => {}
+                Err(error) => {
+                    return Err(error).with_context(|| {
+                        format!("removing the earlier scan's {}", stale.display())
+                    });
+                }
+            }
+        }
+        Ok(OutputFolder {
+            path: path.to_owned(),
+            _lock: lock,
+        })
+    }
+
+    /// The folder.
+    #[must_use]
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}

@@ -1,0 +1,74 @@
+//! The output folder belongs to one scan at a time: a second scan into a folder in use is
+//! refused (nothing spliced into the first's recordings), and a re-scan leaves no stale file of
+//! an earlier scan beside its new report.
+
+use std::process::{Command, Stdio};
+use std::time::Duration;
+
+use crate::util::{assert_success, emulator, fixture, report, run_scanhil, scanhil};
+
+#[test]
+fn a_second_scan_into_a_folder_in_use_is_refused() {
+    let out = tempfile::tempdir().expect("a temporary folder");
+    let out_arg = out.path().to_str().expect("UTF-8 path");
+    let mut first = Command::new(scanhil())
+        .args([
+            "scan",
+            &fixture("scenarios/test-loop-small.json"),
+            "--duration-s",
+            "30",
+            "--out",
+            out_arg,
+        ])
+        .env("SCANHIL_EMULATOR", emulator())
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("starting the first scan");
+    let log = out.path().join("fsm.log");
+    let running = (0..1200).any(|_| {
+        std::thread::sleep(Duration::from_millis(50));
+        std::fs::metadata(&log).is_ok_and(|m| m.len() > 1000)
+    });
+    assert!(running, "the first scan never got going");
+    let second = run_scanhil(&[
+        "scan",
+        &fixture("scenarios/test-loop-small.json"),
+        "--out",
+        out_arg,
+    ]);
+    let _ = first.kill();
+    let _ = first.wait();
+    assert_eq!(second.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&second.stderr);
+    assert!(
+        stderr.contains("another scan still running") && stderr.contains(out_arg),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn a_rescan_leaves_no_stale_output_beside_the_new_report() {
+    let out = tempfile::tempdir().expect("a temporary folder");
+    let out_arg = out.path().to_str().expect("UTF-8 path");
+    // An earlier scan with optics left a snapshot; the mirror-only scan now writes none.
+    std::fs::write(out.path().join("snapshots.png"), b"stale").expect("writing");
+    std::fs::write(out.path().join("notes.txt"), b"mine").expect("writing");
+    let output = run_scanhil(&[
+        "scan",
+        &fixture("scenarios/test-loop-small.json"),
+        "--out",
+        out_arg,
+    ]);
+    assert_success(&output, "scanhil scan");
+    assert_eq!(report(out.path())["outcome"]["complete"], true);
+    assert!(
+        !out.path().join("snapshots.png").exists(),
+        "stale snapshot removed"
+    );
+    assert_eq!(
+        std::fs::read(out.path().join("notes.txt")).expect("kept"),
+        b"mine",
+        "files the scan does not write are left alone"
+    );
+}
