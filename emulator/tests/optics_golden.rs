@@ -11,6 +11,7 @@ use std::path::Path;
 use scanhil_emulator::optics::{OpticalOutcome, Optics, OpticsConfig, SpotConfig};
 use scanhil_emulator::plant::Plant;
 use scanhil_emulator::scene::Scene;
+use scanhil_protocol::ild::IldValue;
 use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 use scanhil_scene::surface::{Surface, SurfaceConfig};
 
@@ -96,6 +97,7 @@ fn default_sweep_config() -> OpticsConfig {
 fn plant_fingerprint(scene: &Scene) -> u64 {
     let mut plant = Plant::from_scene(scene).unwrap();
     let mut f = Fingerprint::new();
+    let mut distances = 0;
     for k in 0..4000 {
         let t = f64::from(k) * 50e-6;
         let command = ActuatorPair {
@@ -103,10 +105,15 @@ fn plant_fingerprint(scene: &Scene) -> u64 {
             b: 0.6 * (2.0 * std::f64::consts::PI * 52.0 * t).sin(),
         };
         for s in plant.step(command).unwrap().sensor_samples {
+            distances += usize::from(matches!(s.value, IldValue::Distance(_)));
             f.add(u64::from(s.value.raw()));
             f.add(s.t_s.to_bits());
         }
     }
+    assert!(
+        distances > 3000,
+        "only {distances} distances: the run sees no surface"
+    );
     f.0
 }
 
