@@ -10,7 +10,8 @@
 //! - [`plant`]: the composed per-period step and its timing convention.
 //! - surfaces (what is in front of the sensor, with its ground truth) live in `scanhil-scene`,
 //!   shared with the host.
-//! - [`optics`]: from mirror angles to the laser spot on the surface, with shading.
+//! - [`optics`]: from mirror angles to the laser spot on the surface, with shading and, as a
+//!   scene option, a second bounce ([`optics::multipath`]).
 //! - [`sensor`]: the ILD 2300-100 triangulation sensor on its own clock.
 //! - [`mirror`]: eq. 4 per sensing axis.
 //! - [`amplifier`], [`cross_talk`], [`power`], [`angle_sensor`]: the drive and the angle

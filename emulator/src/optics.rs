@@ -14,6 +14,14 @@
 //! With `spot` set, the 130 um spot is sampled at several points of its footprint (parallel
 //! rays across the beam); the distance is the mean over the samples that are not shaded, and
 //! the spot is shaded only when all samples are.
+//!
+//! With `multiple_reflections` set, each seen sample also sends a specular share of its light
+//! to a second spot on the surface; when the receiver sees that one too, the sample's distance
+//! is the one the ILD reads from the intensity-weighted centroid of the two images
+//! ([`multipath`] has the model and its assumptions). Absent (the default), the optics are
+//! exactly those without it.
+
+pub mod multipath;
 
 use nalgebra::{Point3, Vector3};
 use scanhil_geometry::{BeamRay, GeometryModel, Scanner, ScannerSetup, SetupError};
@@ -21,6 +29,8 @@ use scanhil_protocol::plant_units::SensingPair;
 use serde::{Deserialize, Serialize};
 
 use scanhil_scene::surface::Surface;
+
+use multipath::{MultipathConfig, SecondBounce, View};
 
 /// Longest beam stretch searched for a surface, mm (far beyond the sensor's range).
 const BEAM_SEARCH_LENGTH_MM: f64 = 1.0e4;
@@ -74,6 +84,9 @@ pub struct OpticsConfig {
     /// Spot averaging; absent or null: a point spot.
     #[serde(default)]
     pub spot: Option<SpotConfig>,
+    /// A second bounce of the laser light ([`multipath`]); absent or null: none.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub multiple_reflections: Option<MultipathConfig>,
 }
 
 impl Default for OpticsConfig {
@@ -85,6 +98,7 @@ impl Default for OpticsConfig {
             max_incidence_deg: default_max_angle_deg(),
             max_viewing_deg: default_max_angle_deg(),
             spot: None,
+            multiple_reflections: None,
         }
     }
 }
@@ -172,6 +186,8 @@ pub struct Optics {
     /// Offsets across the beam, as fractions of the spot radius along two unit axes.
     spot_pattern: Vec<[f64; 2]>,
     spot_radius_mm: f64,
+    /// The second bounce, when the scene asks for it.
+    multipath: Option<SecondBounce>,
 }
 
 impl Optics {
@@ -214,6 +230,16 @@ impl Optics {
                 (sunflower(spot.samples), spot.diameter_mm / 2.0)
             }
         };
+        let multipath = config
+            .multiple_reflections
+            .as_ref()
+            .map(SecondBounce::new)
+            .transpose()
+            .map_err(|value| OpticsError::Invalid {
+                field: "multiple_reflections.specular_share",
+                value,
+                requirement: "in [0, 1)",
+            })?;
         Ok(Optics {
             scanner,
             surface,
@@ -222,6 +248,7 @@ impl Optics {
             cos_max_viewing,
             spot_pattern,
             spot_radius_mm,
+            multipath,
         })
     }
 
@@ -248,6 +275,12 @@ impl Optics {
     #[must_use]
     pub fn scanner(&self) -> &Scanner {
         &self.scanner
+    }
+
+    /// Whether the second bounce (`multiple_reflections`) is modelled.
+    #[must_use]
+    pub fn multiple_reflections(&self) -> bool {
+        self.multipath.is_some()
     }
 
     /// Where the spot lands and what distance the optics deliver, for the mirror's mechanical
@@ -285,17 +318,38 @@ impl Optics {
         let mut count = 0usize;
         let mut first_shade = None;
         for &[a, b] in &self.spot_pattern {
-            let hit = if a == 0.0 && b == 0.0 {
-                Some(center)
+            let offset = if a == 0.0 && b == 0.0 {
+                None
             } else {
-                let offset = self.spot_radius_mm * (a * across_1 + b * across_2);
-                self.surface
-                    .first_hit(&(beam.origin_mm + offset), &unit, BEAM_SEARCH_LENGTH_MM)
+                Some(self.spot_radius_mm * (a * across_1 + b * across_2))
+            };
+            let hit = match offset {
+                None => Some(center),
+                Some(offset) => {
+                    self.surface
+                        .first_hit(&(beam.origin_mm + offset), &unit, BEAM_SEARCH_LENGTH_MM)
+                }
             };
             let Some(hit) = hit else { continue };
             match self.shade(alpha, beta, &unit, &hit) {
                 None => {
-                    sum_mm += beam.z_meas_at(hit.t_mm / length);
+                    let t_mm = match &self.multipath {
+                        None => hit.t_mm,
+                        Some(bounce) => {
+                            let view = View {
+                                surface: &self.surface,
+                                scanner: &self.scanner,
+                                d_alpha_rad: alpha,
+                                d_beta_rad: beta,
+                                shading: self.shading,
+                            };
+                            let origin = beam.origin_mm + offset.unwrap_or_else(Vector3::zeros);
+                            bounce
+                                .apparent_t_mm(&view, &origin, &unit, &hit)
+                                .unwrap_or(hit.t_mm)
+                        }
+                    };
+                    sum_mm += beam.z_meas_at(t_mm / length);
                     count += 1;
                 }
                 Some(reason) => {

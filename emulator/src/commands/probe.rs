@@ -66,6 +66,9 @@ struct ProbeReport {
     surface: &'static str,
     model: &'static str,
     shading: bool,
+    /// Whether the second bounce is modelled (only in the JSON when it is).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    multiple_reflections: bool,
     d_alpha_deg: f64,
     d_beta_deg: f64,
     /// Where the laser meets the mirror, mm.
@@ -147,6 +150,7 @@ fn probe(scene: &Scene, d_alpha_deg: f64, d_beta_deg: f64) -> anyhow::Result<Pro
         surface: optics.surface().kind(),
         model: optics.scanner().model().name(),
         shading: optics.shading(),
+        multiple_reflections: optics.multiple_reflections(),
         d_alpha_deg,
         d_beta_deg,
         beam_origin_mm: reading.beam.origin_mm.coords.into(),
@@ -171,11 +175,16 @@ fn format_text(r: &ProbeReport) -> String {
     let or_none = |v: Option<String>| v.unwrap_or_else(|| "none".into());
     let mut lines = vec![
         format!(
-            "scene          {} (surface {}, model {}, shading {})",
+            "scene          {} (surface {}, model {}, shading {}{})",
             r.scene,
             r.surface,
             r.model,
-            if r.shading { "on" } else { "off" }
+            if r.shading { "on" } else { "off" },
+            if r.multiple_reflections {
+                ", multiple reflections on"
+            } else {
+                ""
+            }
         ),
         format!(
             "mirror         d_alpha {} deg, d_beta {} deg (mechanical)",
