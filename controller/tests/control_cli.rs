@@ -168,3 +168,20 @@ fn a_closed_pipe_on_stdout_ends_the_program_quietly_not_with_a_panic() {
         );
     }
 }
+
+#[test]
+fn analyze_refuses_a_comparison_too_long_to_run() {
+    for duration in ["1e9", "inf", "0.5"] {
+        let out = scanhil(&[
+            "analyze",
+            "--controller",
+            fixture("pid-series.json").to_str().unwrap(),
+            "--compare-methods",
+            "--compare-duration-s",
+            duration,
+        ]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{duration}: {stderr}");
+        assert!(stderr.contains("--compare-duration-s"), "{stderr}");
+    }
+}

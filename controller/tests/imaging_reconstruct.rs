@@ -518,3 +518,20 @@ fn scanhil_compare(
     command.arg("compare").arg(a).arg(b).arg("--out").arg(out);
     command
 }
+
+#[test]
+fn reconstruct_refuses_a_search_radius_that_would_scan_the_whole_grid_per_cell() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("rec.csv");
+    let samples = plane_samples(GeometryModel::SmallAngle);
+    write_recording_csv(std::fs::File::create(&input).unwrap(), &samples).unwrap();
+    for radius in ["1e6", "0", "nan"] {
+        let run = scanhil_reconstruct(&input, &dir.path().join("out"))
+            .args(["--radius-pitches", radius])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{radius}: {stderr}");
+        assert!(stderr.contains("--radius-pitches"), "{stderr}");
+    }
+}

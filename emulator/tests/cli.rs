@@ -131,3 +131,14 @@ fn precision_json_and_plot() {
     std::fs::remove_file(&plot).ok();
     assert!(svg.contains("<svg") && svg.contains("trapezoid"));
 }
+
+#[test]
+fn step_refuses_a_response_too_long_to_hold() {
+    let scene = fixture("scenes/loop-fast.json");
+    for samples in ["0", "10000000"] {
+        let out = emulator(&["step", "--scene", &scene, "--samples", samples]);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{samples}: {stderr}");
+        assert!(stderr.contains(&format!("--samples {samples}")), "{stderr}");
+    }
+}

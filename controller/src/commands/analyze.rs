@@ -33,13 +33,24 @@ pub struct Args {
     /// nominal plant.
     #[arg(long)]
     compare_methods: bool,
-    /// Simulated time for --compare-methods, s (the error is taken over the last second).
+    /// Simulated time for --compare-methods, s (the error is taken over the last second;
+    /// at most 60 s).
     #[arg(long, default_value_t = 3.0)]
     compare_duration_s: f64,
 }
 
+/// The longest --compare-duration-s, s: every discretisation method is simulated that long.
+const MAX_COMPARE_DURATION_S: f64 = 60.0;
+
 /// Runs `scanhil analyze`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let duration_s = args.compare_duration_s;
+    if !(duration_s.is_finite() && (1.0..=MAX_COMPARE_DURATION_S).contains(&duration_s)) {
+        anyhow::bail!(
+            "--compare-duration-s {duration_s}: must be between 1 s (the error is taken over \
+             the last second) and {MAX_COMPARE_DURATION_S} s"
+        );
+    }
     let settings = ControllerSettings::load(&args.controller)?;
     let axis = settings.axis_controller()?;
     let linear = axis.linear();

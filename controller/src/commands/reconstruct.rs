@@ -87,6 +87,9 @@ pub struct Args {
     range_span_mm: Option<f64>,
 }
 
+/// The widest inverse-distance search radius, in cell pitches.
+const MAX_RADIUS_PITCHES: f64 = 20.0;
+
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
 enum Model {
     SmallAngle,
@@ -123,6 +126,16 @@ fn rect(v: &[f64]) -> Region {
 
 /// Runs `scanhil reconstruct`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    if !(args.radius_pitches.is_finite()
+        && args.radius_pitches > 0.0
+        && args.radius_pitches <= MAX_RADIUS_PITCHES)
+    {
+        anyhow::bail!(
+            "--radius-pitches {}: must be positive and at most {MAX_RADIUS_PITCHES} (each cell \
+             searches that far around it)",
+            args.radius_pitches
+        );
+    }
     let rig = args.rig.as_deref().map(Rig::load).transpose()?;
     let rig_range = rig
         .as_ref()

@@ -27,7 +27,8 @@ pub struct Args {
     /// The current step on that sensing axis, in A (rotated onto the coils).
     #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
     amplitude: f64,
-    /// How many control periods to run.
+    /// How many control periods to run (at most 1 000 000: the whole response is held and
+    /// printed).
     #[arg(long, default_value_t = 2000)]
     samples: u64,
     /// Print JSON instead of a table.
@@ -56,8 +57,16 @@ struct Report<'a> {
     samples: Vec<PlantStep>,
 }
 
+/// The most periods `step` runs (it holds and prints every one).
+const MAX_SAMPLES: u64 = 1_000_000;
+
 /// Runs `scanhil-emulator step`.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    anyhow::ensure!(
+        (1..=MAX_SAMPLES).contains(&args.samples),
+        "--samples {}: must be between 1 and {MAX_SAMPLES} (50 s at 20 kHz)",
+        args.samples
+    );
     anyhow::ensure!(
         args.amplitude.is_finite(),
         "--amplitude must be a finite current in A, got {}",
