@@ -43,18 +43,14 @@ fn the_shipped_scans_fit_the_limit_unchanged() {
         coil_resistance_ohm: 2.0 * RigMirror::PAPER.coil_resistance_ohm,
         ..RigMirror::PAPER
     };
-    for (file, controller) in [
-        ("duplo-lissajous-dual-tone.json", None),
-        (
-            "duplo-lissajous-dual-tone.json",
-            Some("dual-tone-exact-tones.json"),
-        ),
-        ("duplo-raster-pid.json", None),
+    // The raster is shrunk for its peak coil current (its mean power is far below the limit);
+    // the Lissajous scans run unchanged.
+    for (file, shrunk_for_current) in [
+        ("duplo-lissajous-dual-tone.json", false),
+        ("duplo-lissajous-dual-tone-table-i.json", false),
+        ("duplo-raster-pid.json", true),
     ] {
         let mut loaded = shipped(file);
-        if let Some(controller) = controller {
-            loaded.controller = scenarios_dir().join("../controllers").join(controller);
-        }
         let plan = ScanPlan::new(&loaded).unwrap();
         let check = plan
             .summary
@@ -70,9 +66,15 @@ fn the_shipped_scans_fit_the_limit_unchanged() {
             check.before.peak_coil_current_bound_a,
             check.factor
         );
+        assert!(check.before.mean_power_w < check.budget_w, "{file}");
+        if shrunk_for_current {
+            let budget_a = check.current_budget_a.expect("the paper's rigs state 4 A");
+            assert!(check.factor < 1.0, "{file}");
+            assert!((check.after.peak_coil_current_bound_a - budget_a).abs() < 1e-9);
+            continue;
+        }
         assert_eq!(check.factor, 1.0, "{file}");
         assert_eq!(plan.trajectory, loaded.trajectory, "{file}");
-        assert!(check.before.mean_power_w < check.budget_w, "{file}");
         // Under the earlier reading (twice the resistance) the same scan is over 30 W.
         loaded.rig.mirror = Some(old_r);
         loaded.power.policy = PowerPolicy::Off;
@@ -96,7 +98,17 @@ fn a_full_range_sine_over_the_limit_is_shrunk_or_refused_with_the_numbers() {
     );
     assert!(check.before.mean_power_w > 30.0);
     assert!(check.factor < 1.0);
-    assert!((check.after.mean_power_w - 27.0).abs() < 1e-9);
+    // Shrunk to the tighter of the two budgets (27 W, 0.9 x 4 A), within the other.
+    let budget_a = check.current_budget_a.expect("the paper's rigs state 4 A");
+    let (power_w, peak_a) = (
+        check.after.mean_power_w,
+        check.after.peak_coil_current_bound_a,
+    );
+    assert!(
+        power_w <= 27.0 + 1e-9 && peak_a <= budget_a + 1e-9,
+        "{power_w} W, {peak_a} A"
+    );
+    assert!((power_w - 27.0).abs() < 1e-9 || (peak_a - budget_a).abs() < 1e-9);
     assert_eq!(plan.trajectory, shrink.trajectory.scaled(check.factor));
 
     let refuse = sine_scenario(60.0, "refuse", true, 1.0);
