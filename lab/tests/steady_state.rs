@@ -22,12 +22,12 @@ fn scenario(name: &str) -> Scenario {
     Scenario::load(&path).expect("the shipped scenario loads")
 }
 
-/// Runs `scenario` in process into a kept temporary folder; returns its report.
+/// Runs `scenario` in process into a temporary folder; returns its report.
 fn run(scenario: &Scenario) -> Value {
-    let dir = tempfile::tempdir().expect("a temporary folder").keep();
-    scanhil_lab::in_process::run(scenario, Some(&dir)).expect("the scan runs");
-    serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).expect("report"))
-        .expect("report.json is JSON")
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    scanhil_lab::in_process::run(scenario, Some(dir.path())).expect("the scan runs");
+    let report = std::fs::read_to_string(dir.path().join("report.json")).expect("report");
+    serde_json::from_str(&report).expect("report.json is JSON")
 }
 
 fn lissajous() -> &'static Value {
