@@ -2,34 +2,15 @@
 //! mirror's SLCAN channel (`C`, so the emulator ends its run by the host's close), writes
 //! everything recorded up to then, says so, and exits 3.
 
-use std::process::{Command, Stdio};
-use std::time::Duration;
+use std::process::Command;
 
-use crate::util::{decode_candump, emulator, fixture, report, scanhil};
+use crate::util::{decode_candump, report, start_long_scan};
 
 /// Starts a long scan, waits until its recording grows, sends `signal`, and checks the stop.
 fn interrupt_with(signal: &str) {
     let out = tempfile::tempdir().expect("a temporary folder");
-    let child = Command::new(scanhil())
-        .args([
-            "scan",
-            &fixture("scenarios/test-loop-small.json"),
-            "--duration-s",
-            "30",
-            "--out",
-            out.path().to_str().expect("UTF-8 path"),
-        ])
-        .env("SCANHIL_EMULATOR", emulator())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("starting scanhil");
+    let child = start_long_scan(out.path(), 20_000);
     let log = out.path().join("fsm.log");
-    let grown = (0..1200).any(|_| {
-        std::thread::sleep(Duration::from_millis(50));
-        std::fs::metadata(&log).is_ok_and(|m| m.len() > 20_000)
-    });
-    assert!(grown, "the scan never got going");
     let status = Command::new("kill")
         .args([&format!("-{signal}"), &child.id().to_string()])
         .status()

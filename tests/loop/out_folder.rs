@@ -2,35 +2,13 @@
 //! refused (nothing spliced into the first's recordings), and a re-scan leaves no stale file of
 //! an earlier scan beside its new report.
 
-use std::process::{Command, Stdio};
-use std::time::Duration;
-
-use crate::util::{assert_success, emulator, fixture, report, run_scanhil, scanhil};
+use crate::util::{assert_success, fixture, report, run_scanhil, start_long_scan};
 
 #[test]
 fn a_second_scan_into_a_folder_in_use_is_refused() {
     let out = tempfile::tempdir().expect("a temporary folder");
     let out_arg = out.path().to_str().expect("UTF-8 path");
-    let mut first = Command::new(scanhil())
-        .args([
-            "scan",
-            &fixture("scenarios/test-loop-small.json"),
-            "--duration-s",
-            "30",
-            "--out",
-            out_arg,
-        ])
-        .env("SCANHIL_EMULATOR", emulator())
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("starting the first scan");
-    let log = out.path().join("fsm.log");
-    let running = (0..1200).any(|_| {
-        std::thread::sleep(Duration::from_millis(50));
-        std::fs::metadata(&log).is_ok_and(|m| m.len() > 1000)
-    });
-    assert!(running, "the first scan never got going");
+    let mut first = start_long_scan(out.path(), 1000);
     let second = run_scanhil(&[
         "scan",
         &fixture("scenarios/test-loop-small.json"),

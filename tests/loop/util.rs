@@ -398,3 +398,30 @@ impl SlcanHost {
         self.frames.recv_timeout(timeout).ok()
     }
 }
+
+/// Starts a 30 s `scanhil scan` of test-loop-small into `out` (stdout and stderr piped) and
+/// waits until its candump log holds more than `bytes`: a scan well under way, to interrupt
+/// or to compete with. Panics if it never gets there.
+pub fn start_long_scan(out: &Path, bytes: u64) -> std::process::Child {
+    let child = Command::new(scanhil())
+        .args([
+            "scan",
+            &fixture("scenarios/test-loop-small.json"),
+            "--duration-s",
+            "30",
+            "--out",
+            out.to_str().expect("UTF-8 path"),
+        ])
+        .env("SCANHIL_EMULATOR", emulator())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("starting scanhil");
+    let log = out.join("fsm.log");
+    let grown = (0..1200).any(|_| {
+        std::thread::sleep(std::time::Duration::from_millis(50));
+        std::fs::metadata(&log).is_ok_and(|m| m.len() > bytes)
+    });
+    assert!(grown, "the scan never got going");
+    child
+}
