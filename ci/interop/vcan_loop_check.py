@@ -30,8 +30,9 @@ Checks:
      shortest-round-trip, so equal numbers are equal bits), except the fields that name or count the
      transport itself: scenario.links (the links asked for), links.sensor (the ILD stream's own
      counters, zero when the sensor is on CAN) and emulator.summary.link.frames_sent (the Distance
-     frames travel on the mirror's link on CAN, on their own line with ILD), sensor_setup (the
-     ILD line is configured over its ASCII commands; on CAN there is none), and run_time_s, the
+     frames travel on the mirror's link on CAN, on their own line with ILD), sensor_setup and
+     emulator.summary.sensor.commands_answered (the ILD line is configured over its ASCII
+     commands; on CAN there is none), and run_time_s, the
      one wall-clock field of a lockstep report (timing.controller and timing.emulator are null,
      and are compared as such).
 4. The sensor's data is the same on both of its transports: the (IldRaw, IldCounter) pairs of the
@@ -73,6 +74,7 @@ TRANSPORT_FIELDS = {
         ("links", "sensor"),
         ("sensor_setup",),
         ("emulator", "summary", "link", "frames_sent"),
+        ("emulator", "summary", "sensor", "commands_answered"),
     ],
 }
 CANDUMP_LINE = re.compile(r"^\((\d+\.\d+)\) (\S+) ([0-9A-F]{3}|[0-9A-F]{8})#([0-9A-F]*)$")
