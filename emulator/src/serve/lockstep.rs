@@ -36,7 +36,11 @@ pub async fn run(
     let mut node = LockstepNode::new(node, config.heartbeat_hz);
     loop {
         let silence = watchdog.as_ref().map(Watchdog::remaining);
+        // Biased, receive first: after a host stall both the queued frame and the expired
+        // watchdog are ready at once, and a frame that has arrived must win (an unbiased
+        // select would make the spurious timeout a coin flip).
         let received = tokio::select! {
+            biased;
             frame = links.fsm.recv() => Some(frame),
             () = sleep_or_never(silence) => None,
             error = links.sensor.answer_commands() => return Err(error),
