@@ -129,7 +129,7 @@ fn realtime_run(
     ]);
     let out = tempfile::tempdir().expect("a temporary folder");
     let fsm = format!("slcan:{}", emulator.path("fsm"));
-    let child = Command::new(scanhil())
+    let mut child = Command::new(scanhil())
         .args([
             "scan",
             &fixture("scenarios/test-loop-small.json"),
@@ -156,6 +156,8 @@ fn realtime_run(
         }
         std::thread::sleep(Duration::from_millis(50));
     }
+    let _ = child.kill();
+    let _ = child.wait();
     panic!("the real-time scan never recorded {bytes} bytes");
 }
 

@@ -98,11 +98,13 @@ pub async fn run(
                     }
                     None => return Err(err.into()),
                 },
-                Some(Ok(frame)) => {
-                    if on_frame(node, &frame, k, &mut last_command_period) {
-                        unanswered_since = None;
-                    }
-                }
+                Some(Ok(frame)) => on_frame(
+                    node,
+                    &frame,
+                    k,
+                    &mut last_command_period,
+                    &mut unanswered_since,
+                ),
             }
         }
         // A tick that starts late (catch-up after a stall of this process) never enters the
@@ -111,11 +113,13 @@ pub async fn run(
         loop {
             match links.fsm.try_recv() {
                 Ok(None) => break,
-                Ok(Some(frame)) => {
-                    if on_frame(node, &frame, k, &mut last_command_period) {
-                        unanswered_since = None;
-                    }
-                }
+                Ok(Some(frame)) => on_frame(
+                    node,
+                    &frame,
+                    k,
+                    &mut last_command_period,
+                    &mut unanswered_since,
+                ),
                 Err(err) => match RunEnd::from_link_error(&err) {
                     Some(end) => {
                         ended_by = end;
@@ -210,23 +214,21 @@ pub async fn run(
 
 /// Handles one frame from the host during period `k`: a coil command is applied (and marks
 /// the period the host was last heard), a malformed loop frame is counted, others ignored.
-/// Returns whether it was a coil command.
+/// A coil command also answers the oldest unanswered reading.
 fn on_frame(
     node: &mut MirrorNode,
     frame: &CanFrame,
     k: u64,
     last_command_period: &mut Option<u64>,
-) -> bool {
+    unanswered_since: &mut Option<Instant>,
+) {
     match Message::decode(frame) {
         Ok(Message::CoilCommand(command)) => {
             *last_command_period = Some(k);
+            *unanswered_since = None;
             node.on_command(command.seq, command.amps());
-            true
         }
-        Ok(_) | Err(MessageError::UnknownId(_)) => false,
-        Err(_) => {
-            node.on_malformed_frame();
-            false
-        }
+        Ok(_) | Err(MessageError::UnknownId(_)) => {}
+        Err(_) => node.on_malformed_frame(),
     }
 }
