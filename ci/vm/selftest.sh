@@ -19,6 +19,8 @@ out_dir=$repo/out/vm-selftest
 # (upper-case hex), which the host compares line by line.
 readonly FRAMES=(123#DEADBEEF 12345678#0102030405060708 7FF#R 000# 1ABCDEF0#R)
 readonly EXPECTED_STATUS=7
+# Frames the guest sends around them to know candump is recording (dropped by the host).
+readonly PROBE=7FE#00 SENTINEL=7FD#FF
 
 # The guest half: runs inside the VM, in the repository.
 in_vm() {
@@ -26,13 +28,25 @@ in_vm() {
     ip -details link show vcan0
     candump -L vcan0 >"$dir/candump.log" &
     local recorder=$!
-    # candump needs a moment to open and bind its socket before the first frame.
-    sleep 0.3
+    # candump needs a moment to open and bind its socket: poll with probe frames until one is
+    # recorded (no fixed sleep), then send the frames, then a sentinel, and poll until the
+    # sentinel is recorded (candump flushes each line). The host drops probes and sentinel.
+    local tries=0
+    until grep -q " vcan0 $PROBE\$" "$dir/candump.log" 2>/dev/null; do
+        ((tries++ < 500)) || { echo "selftest: candump never recorded a probe" >&2; exit 1; }
+        cansend vcan0 "$PROBE"
+        sleep 0.01
+    done
     local frame
     for frame in "${FRAMES[@]}"; do
         cansend vcan0 "$frame"
     done
-    sleep 0.3
+    cansend vcan0 "$SENTINEL"
+    tries=0
+    until grep -q " vcan0 $SENTINEL\$" "$dir/candump.log"; do
+        ((tries++ < 500)) || { echo "selftest: candump never recorded the sentinel" >&2; exit 1; }
+        sleep 0.01
+    done
     kill -INT "$recorder"
     wait "$recorder" || true
     echo "selftest: to stdout"
@@ -67,14 +81,17 @@ host() {
     grep -q 'selftest: to stderr' "$out_dir/stdout" && fail "the guest's stderr line arrived on stdout"
     grep -qx 'selftest: to stderr' "$out_dir/stderr" || fail "the guest's stderr line did not reach stderr"
     [[ -r $out_dir/candump.log ]] || fail "no candump log $out_dir/candump.log on the host"
-    local line index=0
+    local line index=0 sentinel=0
     while IFS= read -r line; do
         [[ $line =~ ^\([0-9]+\.[0-9]{6}\)\ vcan0\ (.*)$ ]] ||
             fail "candump.log line $((index + 1)) is not candump -L format: $line"
+        [[ ${BASH_REMATCH[1]} == "$PROBE" && $index == 0 ]] && continue
+        [[ ${BASH_REMATCH[1]} == "$SENTINEL" && $index == "${#FRAMES[@]}" ]] && { sentinel=1; continue; }
         [[ ${BASH_REMATCH[1]} == "${FRAMES[index]:-<none>}" ]] ||
             fail "candump.log line $((index + 1)) is ${BASH_REMATCH[1]}, expected ${FRAMES[index]:-no more lines}"
         index=$((index + 1))
     done <"$out_dir/candump.log"
+    ((sentinel == 1)) || fail "candump.log does not end with the sentinel $SENTINEL"
     ((index == ${#FRAMES[@]})) || fail "candump.log holds $index frames, expected ${#FRAMES[@]}"
     echo "selftest: ok: exit status $status came through, stdout/stderr apart, $index frames recorded over vcan0"
 

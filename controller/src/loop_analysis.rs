@@ -309,3 +309,129 @@ impl NominalLoop {
         out
     }
 }
+
+#[cfg(test)]
+mod tests {
+    //! The analysis against a loop whose figures have closed forms: `L(z) = k / (z (z - 1))`
+    //! (a gain `k` around an integrator with one period of delay). With `theta = omega T`:
+    //! `|L| = k / (2 sin(theta/2))`, `arg L = -(pi/2 + 3 theta/2)`, so the crossover is at
+    //! `theta_c = 2 asin(k/2)` with phase margin `90 deg - 3 theta_c / 2`, the phase crossover
+    //! at `theta = pi/3` with gain margin `-20 log10 k`; `T = k / (z^2 - z + k)`, whose poles
+    //! have `|z| = sqrt k`, and `|z^2 - z + k|^2 = 4k c^2 - (2 + 2k) c + 2 - 2k + k^2` with
+    //! `c = cos theta`: the peak at `c = (1 + k) / 4k`, the -3 dB point where it equals `2 k^2`.
+
+    use std::f64::consts::PI;
+
+    use super::*;
+    use crate::sos::Section;
+
+    const T: f64 = 5e-5;
+
+    fn delayed_integrator_loop(k: f64) -> NominalLoop {
+        let plant = Cascade::new(
+            1.0,
+            vec![Section {
+                b: [0.0, 0.0, 1.0],
+                a: [-1.0, 0.0],
+            }],
+        );
+        NominalLoop::new(Cascade::new(k, vec![]), plant, T)
+    }
+
+    fn hz(theta: f64) -> f64 {
+        theta / (2.0 * PI * T)
+    }
+
+    fn close(what: &str, got: f64, want: f64, tolerance: f64) {
+        assert!(
+            (got - want).abs() <= tolerance,
+            "{what}: got {got}, the closed form gives {want} (tolerance {tolerance})"
+        );
+    }
+
+    #[test]
+    fn figures_of_a_delayed_integrator_match_their_closed_forms() {
+        let k = 0.5;
+        let r = delayed_integrator_loop(k).report(&[]);
+        assert!(r.stable);
+        close("spectral radius", r.spectral_radius, k.sqrt(), 1e-9);
+        let theta_c = 2.0 * (k / 2.0).asin();
+        assert_eq!(r.gain_crossovers.len(), 1, "{:?}", r.gain_crossovers);
+        close("crossover Hz", r.crossover_hz.unwrap(), hz(theta_c), 1e-6);
+        close(
+            "phase margin deg",
+            r.phase_margin_deg.unwrap(),
+            90.0 - 1.5 * theta_c.to_degrees(),
+            1e-6,
+        );
+        assert_eq!(r.phase_crossovers.len(), 1, "{:?}", r.phase_crossovers);
+        close(
+            "phase crossover Hz",
+            r.phase_crossovers[0].f_hz,
+            hz(PI / 3.0),
+            1e-6,
+        );
+        close(
+            "gain margin dB",
+            r.gain_margin_db.unwrap(),
+            -20.0 * k.log10(),
+            1e-9,
+        );
+        // |T| from the denominator's closed form in c = cos(theta).
+        let den2 = |c: f64| 4.0 * k * c * c - (2.0 + 2.0 * k) * c + 2.0 - 2.0 * k + k * k;
+        let c_peak = (1.0 + k) / (4.0 * k);
+        let peak_db = 20.0 * (k / den2(c_peak).sqrt()).log10();
+        close("peak dB", r.peak_db, peak_db, 1e-3);
+        let f_peak = hz(c_peak.acos());
+        // The peak is read on the analysis grid (log spaced, 0.2 % apart there).
+        close("peak Hz", r.peak_hz, f_peak, 0.005 * f_peak);
+        // -3 dB: den2(c) = 2 k^2, the root with c in [-1, 1] and below the peak's c.
+        let (qa, qb, qc) = (
+            4.0 * k,
+            -(2.0 + 2.0 * k),
+            2.0 - 2.0 * k + k * k - 2.0 * k * k,
+        );
+        let c_bw = (-qb - (qb * qb - 4.0 * qa * qc).sqrt()) / (2.0 * qa);
+        // (The report's -3 dB is 3.0103 dB, 4e-8 dB off 10 log10 2: 1e-5 Hz here.)
+        close(
+            "bandwidth Hz",
+            r.bandwidth_3db_hz.unwrap(),
+            hz(c_bw.acos()),
+            1e-3,
+        );
+    }
+
+    #[test]
+    fn a_loop_with_too_much_gain_is_unstable_and_has_no_gain_margin() {
+        // k > 1: the poles leave the unit circle (|z| = sqrt k) and |L| > 1 where the phase
+        // crosses -180 deg.
+        let k = 1.2;
+        let r = delayed_integrator_loop(k).report(&[]);
+        assert!(!r.stable, "{r:?}");
+        close("spectral radius", r.spectral_radius, k.sqrt(), 1e-9);
+        assert_eq!(r.gain_margin_db, None, "{r:?}");
+        close(
+            "negative gain margin",
+            r.phase_crossovers[0].gain_margin_db,
+            -20.0 * k.log10(),
+            1e-9,
+        );
+    }
+
+    #[test]
+    fn a_wrong_sign_controller_has_no_positive_margins() {
+        // -k instead of k: at low frequency L is a large negative real (arg = -180 deg), the
+        // phase margin at the crossover is 180 deg away from the right sign's.
+        let k = 0.5;
+        let good = delayed_integrator_loop(k).report(&[]);
+        let bad = delayed_integrator_loop(-k).report(&[]);
+        assert!(good.stable && !bad.stable, "{bad:?}");
+        let theta_c = 2.0 * (k / 2.0).asin();
+        close(
+            "wrong-sign phase margin",
+            bad.phase_margin_deg.unwrap(),
+            -90.0 - 1.5 * theta_c.to_degrees(),
+            1e-6,
+        );
+    }
+}

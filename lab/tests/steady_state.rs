@@ -189,3 +189,28 @@ fn a_detuned_tone_fails_the_check() {
         "{error}"
     );
 }
+
+#[test]
+fn a_wrong_sign_controller_never_scans() {
+    // The dual-tone's gain k negated: positive feedback around the mirror. The host refuses
+    // it before the loop (its nominal closed loop is unstable), so no scan can pass the
+    // steady-state checks with it.
+    let mut wrong = scenario("duplo-lissajous-dual-tone.json");
+    let text = std::fs::read_to_string(&wrong.controller).expect("the controller file");
+    let changed = text.replace("\"k\": 179.75", "\"k\": -179.75");
+    assert_ne!(changed, text, "the controller has Table I's gain");
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let file: PathBuf = dir.path().join("wrong-sign.json");
+    std::fs::write(&file, changed).expect("writing the controller");
+    wrong.controller = file;
+    wrong.duration_s = 0.05;
+    let out = tempfile::tempdir().expect("a temporary folder");
+    let error = scanhil_lab::in_process::run(&wrong, Some(out.path()))
+        .expect_err("a wrong-sign controller must not run");
+    let message = format!("{error:#}");
+    assert!(message.contains("unstable"), "{message}");
+    assert!(
+        !out.path().join("report.json").exists(),
+        "refused before any scan was written"
+    );
+}

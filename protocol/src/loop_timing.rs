@@ -28,6 +28,11 @@ pub struct PeriodStats {
     pub max_s: f64,
     /// Periods whose deadline was missed.
     pub overruns: u64,
+    /// Measured values above the nominal period, counted from the same samples as the
+    /// percentiles (where an overrun means "longer than one period", as for an answer latency,
+    /// it must equal `overruns`: a check on the bookkeeping that can fail).
+    #[serde(default)]
+    pub above_nominal: u64,
 }
 
 impl PeriodRecorder {
@@ -72,6 +77,7 @@ impl PeriodRecorder {
             p99_s: rank(0.99),
             max_s: sorted[sorted.len() - 1],
             overruns: self.overruns,
+            above_nominal: sorted.iter().filter(|&&v| v > nominal_s).count() as u64,
         })
     }
 }
@@ -93,6 +99,7 @@ mod tests {
         assert_eq!((stats.min_s, stats.median_s), (1.0, 50.0));
         assert_eq!((stats.p99_s, stats.max_s), (99.0, 100.0));
         assert_eq!(stats.overruns, 1);
+        assert_eq!(stats.above_nominal, 50, "51..=100 are above 50");
     }
 
     #[test]

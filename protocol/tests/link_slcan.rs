@@ -243,7 +243,9 @@ async fn receive_timeouts_and_the_watchdog_fire_on_a_quiet_link() {
     let (mut host, mut device) = host_and_device("").await;
     assert_nothing_arrives(&mut host, Duration::from_millis(30)).await;
 
-    let mut watchdog = Watchdog::new(host.name(), Duration::from_millis(2), 10);
+    // 10 periods of 50 ms: the frame below must arrive well inside the allowance even on a
+    // loaded machine (a 2 ms period gave a 20 ms allowance that a scheduler hiccup could eat).
+    let mut watchdog = Watchdog::new(host.name(), Duration::from_millis(50), 10);
     device.send(&std_frame(0x110, &[9])).await.unwrap();
     assert_eq!(
         host.recv_watched(&mut watchdog).await.unwrap(),
@@ -253,7 +255,9 @@ async fn receive_timeouts_and_the_watchdog_fire_on_a_quiet_link() {
     let Err(RecvError::Timeout(timeout)) = host.recv_watched(&mut watchdog).await else {
         panic!("the watchdog did not fire");
     };
-    assert!(started.elapsed() >= Duration::from_millis(18));
+    // Fed when the frame arrived, just before `started`: the silence lasts the allowance less
+    // that gap (a lower bound only, which a slow machine cannot break).
+    assert!(started.elapsed() >= Duration::from_millis(450));
     assert_eq!(timeout.periods, 10);
     assert!(timeout.to_string().contains(host.name()), "{timeout}");
 }

@@ -17,9 +17,13 @@ fn signal(pid: u32, name: &str) {
     assert!(status.success(), "kill -{name} {pid}");
 }
 
-/// Runs a long scan against a hand-started emulator, sends it `signal_name` after a moment,
-/// and returns scanhil's exit code, stderr and output folder.
-fn scan_and_signal(signal_name: &str) -> (Option<i32>, String, tempfile::TempDir) {
+/// Runs a long scan against a hand-started emulator with the scan's watchdog at
+/// `watchdog_periods` (of the scenario's 50 ms allowance), sends the emulator `signal_name`
+/// after a moment, and returns scanhil's exit code, stderr and output folder.
+fn scan_and_signal(
+    signal_name: &str,
+    watchdog_periods: u32,
+) -> (Option<i32>, String, tempfile::TempDir) {
     let emulator = ServedEmulator::start(&[
         "--scene",
         &fixture("scenes/loop-fast.json"),
@@ -38,7 +42,7 @@ fn scan_and_signal(signal_name: &str) -> (Option<i32>, String, tempfile::TempDir
             "--duration-s",
             "60",
             "--watchdog-periods",
-            "10",
+            &watchdog_periods.to_string(),
             "--out",
             out.path().to_str().expect("UTF-8 path"),
         ])
@@ -127,12 +131,16 @@ fn assert_stopped_cleanly(
 
 #[test]
 fn a_frozen_emulator_stops_the_scan_with_a_link_timeout() {
-    let (code, stderr, out) = scan_and_signal("STOP");
+    // 40 x 50 ms = 2 s: far above a loaded machine's hiccup before the freeze, so the
+    // timeout is the freeze's (a 0.5 s watchdog nearly coincided with such stalls).
+    let (code, stderr, out) = scan_and_signal("STOP", 40);
     assert_stopped_cleanly(code, &stderr, &out, "link timeout", true);
 }
 
 #[test]
 fn a_killed_emulator_stops_the_scan_with_a_hang_up() {
-    let (code, stderr, out) = scan_and_signal("KILL");
+    // A watchdog no run reaches (100 000 x 50 ms): only the hang-up can stop this scan, so
+    // the cause cannot be a timeout racing the kill.
+    let (code, stderr, out) = scan_and_signal("KILL", 100_000);
     assert_stopped_cleanly(code, &stderr, &out, "hung up", false);
 }

@@ -250,7 +250,9 @@ pub async fn run_checks(
         name: "link_timeout_fault",
         node: "fsm",
         passed: timeout.is_ok(),
-        detail: timeout.unwrap_or_else(|e| e.to_string()),
+        detail: timeout.unwrap_or_else(|e| {
+            format!("no LinkTimeout fault from the node after the host fell silent: {e}")
+        }),
         time_s: t0.elapsed().as_secs_f64(),
     });
     results

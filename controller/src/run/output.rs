@@ -383,3 +383,103 @@ fn write_tracking_plot(
     }
     draw_charts(&out_dir.join(TRACKING_SVG), &charts).context("writing tracking.svg")
 }
+
+#[cfg(test)]
+mod tests {
+    //! The real sensor's clock estimate (`estimate_sensor_clock`) from known counter/arrival
+    //! pairs: each sample arrives a transmission time plus a random queueing delay after it
+    //! was measured, so the estimate must lie within the transmission time (and the smallest
+    //! queueing delay) after the true `counter_zero_s`, never before it.
+
+    use std::time::Duration;
+
+    use scanhil_protocol::ild::IldValue;
+
+    use super::estimate_sensor_clock;
+    use crate::run::sensor_link::CountedSample;
+
+    const RATE_HZ: f64 = 20_000.0;
+    /// One ILD cycle (3 bytes of 10 bits) at 691 200 Bd.
+    const TRANSMISSION_S: f64 = 30.0 / 691_200.0;
+
+    /// Samples with counters `first..first + n` measured from `zero_s` on the loop's time
+    /// axis; each arrives `TRANSMISSION_S` plus a queueing delay (up to `jitter_s`, zero for
+    /// every 50th sample: the line drains in bursts) after its instant, in shuffled order.
+    fn samples(
+        epoch: tokio::time::Instant,
+        zero_s: f64,
+        first: u64,
+        n: u64,
+        jitter_s: f64,
+    ) -> Vec<CountedSample> {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut uniform = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut out: Vec<CountedSample> = (first..first + n)
+            .map(|counter| {
+                let queued = if counter % 50 == 0 {
+                    0.0
+                } else {
+                    uniform() * jitter_s
+                };
+                let measured = zero_s + counter as f64 / RATE_HZ;
+                CountedSample {
+                    counter,
+                    value: IldValue::Distance(1000),
+                    arrived: epoch + Duration::from_secs_f64(measured + TRANSMISSION_S + queued),
+                }
+            })
+            .collect();
+        // Arrival order never matters: hand them over last first.
+        out.reverse();
+        out
+    }
+
+    #[test]
+    fn the_estimate_is_within_the_transmission_time_of_the_true_clock() {
+        let epoch = tokio::time::Instant::now();
+        for (zero_s, first, jitter_s) in [
+            (0.0123, 0, 2e-3),
+            (0.5, 262_144 + 17, 5e-3), // past one wrap of the 18-bit counter
+            (0.0, 0, 0.0),
+        ] {
+            let clock = estimate_sensor_clock(
+                &samples(epoch, zero_s, first, 4000, jitter_s),
+                epoch,
+                RATE_HZ,
+            );
+            assert_eq!(clock.measuring_rate_hz, RATE_HZ);
+            let error = clock.counter_zero_s - zero_s;
+            assert!(
+                (-1e-9..=TRANSMISSION_S + 1e-9).contains(&error),
+                "estimate {} for a true {zero_s}: {error} s off (transmission {TRANSMISSION_S} s)",
+                clock.counter_zero_s
+            );
+        }
+    }
+
+    #[test]
+    fn a_late_burst_does_not_pull_the_estimate() {
+        // Every sample delayed by at least 1 ms except one prompt one: the prompt one decides.
+        let epoch = tokio::time::Instant::now();
+        let mut all = samples(epoch, 0.02, 0, 1000, 3e-3);
+        for sample in &mut all {
+            if sample.counter != 500 {
+                sample.arrived += Duration::from_millis(1);
+            }
+        }
+        let clock = estimate_sensor_clock(&all, epoch, RATE_HZ);
+        let error = clock.counter_zero_s - 0.02;
+        assert!((-1e-9..=TRANSMISSION_S + 1e-9).contains(&error), "{error}");
+    }
+
+    #[test]
+    fn no_samples_give_counter_zero_at_the_epoch() {
+        let clock = estimate_sensor_clock(&[], tokio::time::Instant::now(), RATE_HZ);
+        assert_eq!(clock.counter_zero_s, 0.0);
+    }
+}

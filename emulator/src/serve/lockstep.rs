@@ -36,7 +36,11 @@ pub async fn run(
     let mut node = LockstepNode::new(node, config.heartbeat_hz);
     loop {
         let silence = watchdog.as_ref().map(Watchdog::remaining);
+        // Biased, receive first: after a host stall both the queued frame and the expired
+        // watchdog are ready at once, and a frame that has arrived must win (an unbiased
+        // select would make the spurious timeout a coin flip).
         let received = tokio::select! {
+            biased;
             frame = links.fsm.recv() => Some(frame),
             () = sleep_or_never(silence) => None,
             error = links.sensor.answer_commands() => return Err(error),
@@ -123,18 +127,25 @@ async fn sleep_or_never(duration: Option<Duration>) {
 pub const LINGER: Duration = Duration::from_secs(2);
 
 /// Keeps the link open, ignoring what arrives, until the host hangs up, closes the channel, or
-/// [`LINGER`] passes.
+/// [`LINGER`] passes. It reads without ever waiting on a write: when the host is itself blocked
+/// writing into a full line (it was frozen while the node kept sending), draining its frames
+/// unblocks it, and the node's queued frames go out as the host reads (a blocking write here
+/// would deadlock both ends).
 ///
 /// # Errors
 /// A link error other than the hang-up.
 pub async fn linger(links: &mut ServeLinks) -> anyhow::Result<()> {
     let deadline = tokio::time::Instant::now() + LINGER;
-    loop {
-        match tokio::time::timeout_at(deadline, links.fsm.recv()).await {
-            Err(_) => return Ok(()),
-            Ok(Err(error)) if RunEnd::from_link_error(&error).is_some() => return Ok(()),
-            Ok(Err(error)) => return Err(error.into()),
-            Ok(Ok(_)) => {}
+    while tokio::time::Instant::now() < deadline {
+        match links.fsm.try_recv() {
+            Ok(Some(_)) => {}
+            Ok(None) => tokio::time::sleep(Duration::from_millis(1)).await,
+            Err(error) if RunEnd::from_link_error(&error).is_some() => return Ok(()),
+            Err(error) => return Err(error.into()),
+        }
+        if !links.fsm.channel_open() {
+            return Ok(());
         }
     }
+    Ok(())
 }

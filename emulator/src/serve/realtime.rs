@@ -12,6 +12,7 @@
 
 use std::time::{Duration, Instant};
 
+use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::loop_timing::PeriodRecorder;
 use scanhil_protocol::message::{Message, MessageError, NodeState};
 
@@ -43,6 +44,11 @@ pub async fn run(
     let mut recorder =
         PeriodRecorder::with_capacity(total_periods.unwrap_or(0).min(1 << 24) as usize);
     let mut last_command_period: Option<u64> = None;
+    // When the oldest reading the host has not answered yet went out (wall clock): the
+    // host's silence is measured from there, so a node whose sends stretch under a full line
+    // (each tick then waits out the send allowance) still notices a frozen host.
+    let mut unanswered_since: Option<Instant> = None;
+    let silence_allowance = period.saturating_mul(config.watchdog_periods);
     let mut dropped_periods = 0u64;
     // The clock starts when the host has opened the channel (SLCAN `O`; SocketCAN is open).
     while !links.fsm.channel_open() {
@@ -92,13 +98,34 @@ pub async fn run(
                     }
                     None => return Err(err.into()),
                 },
-                Some(Ok(frame)) => match Message::decode(&frame) {
-                    Ok(Message::CoilCommand(command)) => {
-                        last_command_period = Some(k);
-                        node.on_command(command.seq, command.amps());
+                Some(Ok(frame)) => on_frame(
+                    node,
+                    &frame,
+                    k,
+                    &mut last_command_period,
+                    &mut unanswered_since,
+                ),
+            }
+        }
+        // A tick that starts late (catch-up after a stall of this process) never enters the
+        // wait above: read what the host has queued anyway, so its commands count before the
+        // watchdog looks (else a stall of the node alone would look like a silent host).
+        loop {
+            match links.fsm.try_recv() {
+                Ok(None) => break,
+                Ok(Some(frame)) => on_frame(
+                    node,
+                    &frame,
+                    k,
+                    &mut last_command_period,
+                    &mut unanswered_since,
+                ),
+                Err(err) => match RunEnd::from_link_error(&err) {
+                    Some(end) => {
+                        ended_by = end;
+                        break 'ticks;
                     }
-                    Ok(_) | Err(MessageError::UnknownId(_)) => {}
-                    Err(_) => node.on_malformed_frame(),
+                    None => return Err(err.into()),
                 },
             }
         }
@@ -110,11 +137,27 @@ pub async fn run(
             recorder.overrun();
         }
         last_tick = Some(now);
-        if last_command_period.is_some_and(|last| k - last > u64::from(config.watchdog_periods)) {
+        // The watchdog: armed by the first command; fires after `watchdog_periods` ticks
+        // without one, or when a reading has waited that many periods of wall time for its
+        // answer.
+        let silent_ticks =
+            last_command_period.is_some_and(|last| k - last > u64::from(config.watchdog_periods));
+        let silent_wall = last_command_period.is_some()
+            && unanswered_since.is_some_and(|since| now.duration_since(since) > silence_allowance);
+        if silent_ticks || silent_wall {
             let (kind, detail) = node.on_link_timeout(config.watchdog_periods);
-            links.fsm.send(&fault_frame(kind, detail, k)?).await?;
-            let status = status_frame(NodeState::Fault, k, node.plant().period_s())?;
-            links.fsm.send(&status).await?;
+            // A frozen host leaves the line full: the frames are queued (a send that times out
+            // keeps what it has not written) and go out while `linger` drains the host.
+            for frame in [
+                fault_frame(kind, detail, k)?,
+                status_frame(NodeState::Fault, k, node.plant().period_s())?,
+            ] {
+                if let Ok(result) =
+                    tokio::time::timeout(SEND_ALLOWANCE, links.fsm.send(&frame)).await
+                {
+                    result?;
+                }
+            }
             linger(links).await?;
             outcome = ServeOutcome::LinkTimeout;
             ended_by = RunEnd::Watchdog;
@@ -124,6 +167,7 @@ pub async fn run(
             ));
             break;
         }
+        unanswered_since.get_or_insert(now);
         let mut frames = vec![Message::Sync { step: k as u32 }.encode()?];
         let mut samples = Vec::new();
         for output in node.step()? {
@@ -166,4 +210,25 @@ pub async fn run(
         }),
         error,
     })
+}
+
+/// Handles one frame from the host during period `k`: a coil command is applied (and marks
+/// the period the host was last heard), a malformed loop frame is counted, others ignored.
+/// A coil command also answers the oldest unanswered reading.
+fn on_frame(
+    node: &mut MirrorNode,
+    frame: &CanFrame,
+    k: u64,
+    last_command_period: &mut Option<u64>,
+    unanswered_since: &mut Option<Instant>,
+) {
+    match Message::decode(frame) {
+        Ok(Message::CoilCommand(command)) => {
+            *last_command_period = Some(k);
+            *unanswered_since = None;
+            node.on_command(command.seq, command.amps());
+        }
+        Ok(_) | Err(MessageError::UnknownId(_)) => {}
+        Err(_) => node.on_malformed_frame(),
+    }
 }
