@@ -7,15 +7,7 @@ use std::time::Duration;
 
 use scanhil_protocol::message::Message;
 
-use crate::util::{ServedEmulator, decode_candump, fixture, report, scanhil};
-
-fn signal(pid: u32, name: &str) {
-    let status = Command::new("kill")
-        .args([&format!("-{name}"), &pid.to_string()])
-        .status()
-        .expect("running kill");
-    assert!(status.success(), "kill -{name} {pid}");
-}
+use crate::util::{ServedEmulator, decode_candump, fixture, report, scanhil, signal};
 
 /// Runs a long scan against a hand-started emulator with the scan's watchdog at
 /// `watchdog_periods` (of the scenario's 50 ms allowance), sends the emulator `signal_name`

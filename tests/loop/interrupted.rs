@@ -2,8 +2,6 @@
 //! mirror's SLCAN channel (`C`, so the emulator ends its run by the host's close), writes
 //! everything recorded up to then, says so, and exits 3.
 
-use std::process::Command;
-
 use crate::util::{decode_candump, report, start_long_scan};
 
 /// Starts a long scan, waits until its recording grows, sends `signal`, and checks the stop.
@@ -11,11 +9,7 @@ fn interrupt_with(signal: &str) {
     let out = tempfile::tempdir().expect("a temporary folder");
     let child = start_long_scan(out.path(), 20_000);
     let log = out.path().join("fsm.log");
-    let status = Command::new("kill")
-        .args([&format!("-{signal}"), &child.id().to_string()])
-        .status()
-        .expect("running kill");
-    assert!(status.success());
+    crate::util::signal(child.id(), signal);
     let output = child.wait_with_output().expect("waiting for scanhil");
     let stderr = String::from_utf8_lossy(&output.stderr);
     let stdout = String::from_utf8_lossy(&output.stdout);

@@ -6,7 +6,9 @@
 use std::process::Command;
 use std::time::Duration;
 
-use crate::util::{ServedEmulator, decode_candump, fixture, number, report, run_scanhil, scanhil};
+use crate::util::{
+    ServedEmulator, decode_candump, fixture, number, report, run_scanhil, scanhil, signal,
+};
 
 /// Asserts what must hold of one [`PeriodStats`] block at `side` in `report`, whatever the
 /// machine's load: ordered and positive figures, `intervals` measured values.
@@ -96,14 +98,6 @@ fn a_realtime_scan_completes_and_its_timing_figures_add_up() {
         "{}",
         report["timing"]
     );
-}
-
-fn signal(pid: u32, name: &str) {
-    let status = Command::new("kill")
-        .args([&format!("-{name}"), &pid.to_string()])
-        .status()
-        .expect("running kill");
-    assert!(status.success(), "kill -{name} {pid}");
 }
 
 /// A real-time emulator with a watchdog of `watchdog_periods` periods, and a `scanhil scan`

@@ -425,3 +425,12 @@ pub fn start_long_scan(out: &Path, bytes: u64) -> std::process::Child {
     assert!(grown, "the scan never got going");
     child
 }
+
+/// Sends signal `name` (`STOP`, `CONT`, `KILL`, `INT`, ...) to process `pid`.
+pub fn signal(pid: u32, name: &str) {
+    let status = Command::new("kill")
+        .args([&format!("-{name}"), &pid.to_string()])
+        .status()
+        .expect("running kill");
+    assert!(status.success(), "kill -{name} {pid}");
+}
