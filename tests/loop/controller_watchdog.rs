@@ -3,11 +3,12 @@
 //! what it recorded stays valid.
 
 use std::process::Command;
-use std::time::Duration;
 
 use scanhil_protocol::message::Message;
 
-use crate::util::{ServedEmulator, decode_candump, fixture, report, scanhil, signal};
+use crate::util::{
+    ServedEmulator, decode_candump, fixture, recording_grows, report, scanhil, signal,
+};
 
 /// Runs a long scan against a hand-started emulator with the scan's watchdog at
 /// `watchdog_periods` (of the scenario's 50 ms allowance), sends the emulator `signal_name`
@@ -43,13 +44,7 @@ fn scan_and_signal(
         .spawn()
         .expect("starting scanhil");
     // Let the loop run, then stop the emulator.
-    let log = out.path().join("fsm.log");
-    for _ in 0..600 {
-        if std::fs::metadata(&log).is_ok_and(|m| m.len() > 10_000) {
-            break;
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
+    let _ = recording_grows(out.path(), 10_000);
     signal(emulator.child.id(), signal_name);
     let output = child.wait_with_output().expect("waiting for scanhil");
     if signal_name == "STOP" {

@@ -7,7 +7,8 @@ use std::process::Command;
 use std::time::Duration;
 
 use crate::util::{
-    ServedEmulator, decode_candump, fixture, number, report, run_scanhil, scanhil, signal,
+    ServedEmulator, decode_candump, fixture, number, recording_grows, report, run_scanhil, scanhil,
+    signal,
 };
 
 /// Asserts what must hold of one [`PeriodStats`] block at `side` in `report`, whatever the
@@ -143,12 +144,8 @@ fn realtime_run(
         .stderr(std::process::Stdio::piped())
         .spawn()
         .expect("starting scanhil");
-    let log = out.path().join("fsm.log");
-    for _ in 0..1200 {
-        if std::fs::metadata(&log).is_ok_and(|m| m.len() > bytes) {
-            return (emulator, child, out);
-        }
-        std::thread::sleep(Duration::from_millis(50));
+    if recording_grows(out.path(), bytes) {
+        return (emulator, child, out);
     }
     let _ = child.kill();
     let _ = child.wait();

@@ -417,13 +417,18 @@ pub fn start_long_scan(out: &Path, bytes: u64) -> std::process::Child {
         .stderr(std::process::Stdio::piped())
         .spawn()
         .expect("starting scanhil");
+    assert!(recording_grows(out, bytes), "the scan never got going");
+    child
+}
+
+/// Polls (every 50 ms, 60 s at most) until the scan writing into `out` has recorded more than
+/// `bytes` of `fsm.log`; false if it never does.
+pub fn recording_grows(out: &Path, bytes: u64) -> bool {
     let log = out.join("fsm.log");
-    let grown = (0..1200).any(|_| {
+    (0..1200).any(|_| {
         std::thread::sleep(std::time::Duration::from_millis(50));
         std::fs::metadata(&log).is_ok_and(|m| m.len() > bytes)
-    });
-    assert!(grown, "the scan never got going");
-    child
+    })
 }
 
 /// Sends signal `name` (`STOP`, `CONT`, `KILL`, `INT`, ...) to process `pid`.
