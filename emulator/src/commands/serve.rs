@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 
+use scanhil_emulator::serve::misbehaviour::Misbehaviour;
 use scanhil_emulator::serve::{DEFAULT_HEARTBEAT_HZ, ServeConfig, ServeOutcome, TimingMode};
 
 /// Serve the emulated mirror (`--fsm`) and/or sensor (`--sensor`) on real links.
@@ -40,6 +41,10 @@ pub struct Args {
     /// Status/heartbeat frames per second (of loop time).
     #[arg(long, default_value_t = DEFAULT_HEARTBEAT_HZ)]
     heartbeat_hz: f64,
+    /// A conformance test aid: break this protocol rule on purpose (lockstep only; see
+    /// docs/loop.md). Hidden from --help: no real use wants a broken node.
+    #[arg(long, value_enum, hide = true)]
+    misbehave: Option<Misbehaviour>,
 }
 
 /// Runs the node(s) until the controller closes the link, the watchdog fires or the duration
@@ -59,6 +64,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         lockstep_answer_allowance_s: args.lockstep_answer_allowance_s,
         duration_s: args.duration_s,
         heartbeat_hz: args.heartbeat_hz,
+        misbehave: args.misbehave,
     };
     let outcome = scanhil_emulator::serve::serve(&config).context("serve")?;
     Ok(match outcome {

@@ -12,17 +12,21 @@
 
 use std::time::Duration;
 
+use anyhow::bail;
+
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::link::Watchdog;
 
 use super::lockstep_node::{LockstepNode, NodeReply, NodeSend};
 use super::mirror_node::MirrorNode;
+use super::misbehaviour::{Answer, LATE_ANSWER_ALLOWANCES, Misbehaving};
 use super::{LoopReport, RunEnd, ServeConfig, ServeLinks, ServeOutcome};
 
 /// Runs the lockstep loop until the controller hangs up, closes the SLCAN channel, ends the run
 /// with its Status frame, or the watchdog fires. What the node answers is [`LockstepNode`]'s;
 /// this loop only receives, sends and keeps the watchdog. While waiting for frames, the sensor
-/// answers the host's ILD commands.
+/// answers the host's ILD commands. With `config.misbehave`, the node's answers go through
+/// [`Misbehaving`] (a deliberately non-conforming node).
 ///
 /// # Errors
 /// A link error other than a hang-up, or a plant error (non-finite command).
@@ -34,6 +38,10 @@ pub async fn run(
     let allowance = Duration::from_secs_f64(config.lockstep_answer_allowance_s);
     let mut watchdog: Option<Watchdog> = None;
     let mut node = LockstepNode::new(node, config.heartbeat_hz);
+    let mut misbehaving = config.misbehave.map(Misbehaving::new);
+    let late_pause = allowance
+        .saturating_mul(config.watchdog_periods)
+        .mul_f64(LATE_ANSWER_ALLOWANCES);
     loop {
         let silence = watchdog.as_ref().map(Watchdog::remaining);
         // Biased, receive first: after a host stall both the queued frame and the expired
@@ -74,15 +82,35 @@ pub async fn run(
             }
             Some(Ok(frame)) => frame,
         };
+        if let Some(misbehaving) = &misbehaving
+            && misbehaving.dies(links.fsm.stats().slcan.malformed_lines)
+        {
+            bail!(
+                "--misbehave dies-on-garbage: dying on purpose at the first frame after a garbage SLCAN line"
+            );
+        }
         match node.on_frame(&frame)? {
             NodeReply::Ignored => {}
             NodeReply::Send(sends) => {
-                watchdog
-                    .get_or_insert_with(|| {
-                        Watchdog::new("controller", allowance, config.watchdog_periods)
-                    })
-                    .feed();
-                for send in sends {
+                if misbehaving.as_ref().is_none_or(Misbehaving::arms_watchdog) {
+                    watchdog
+                        .get_or_insert_with(|| {
+                            Watchdog::new("controller", allowance, config.watchdog_periods)
+                        })
+                        .feed();
+                }
+                let answer = match &mut misbehaving {
+                    Some(misbehaving) => misbehaving.answer(sends)?,
+                    None => Answer { sends, late: false },
+                };
+                if answer.late {
+                    tokio::time::sleep(late_pause).await;
+                    // The node's own stall is not the host's silence.
+                    if let Some(watchdog) = &mut watchdog {
+                        watchdog.feed();
+                    }
+                }
+                for send in answer.sends {
                     match send {
                         NodeSend::Frame(frame) => links.fsm.send(&frame).await?,
                         NodeSend::Samples(samples) => {

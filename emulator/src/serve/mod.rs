@@ -7,6 +7,7 @@
 //! - [`lockstep_node`]: the node's answers to the controller's frames in lockstep (no I/O).
 //! - [`lockstep`]: the controller's Step frame advances the plant one period.
 //! - [`realtime`]: this emulator is the clock master on the wall clock.
+//! - [`misbehaviour`]: deliberately non-conforming nodes for conformance tests (lockstep).
 //!
 //! The process speaks on stdout in JSON lines: `{"event":"ready",...}` once the links are
 //! open (with the paths of any pty it created), and `{"event":"summary",...}` at the end.
@@ -14,6 +15,7 @@
 pub mod lockstep;
 pub mod lockstep_node;
 pub mod mirror_node;
+pub mod misbehaviour;
 pub mod realtime;
 pub mod sensor_commands;
 pub mod sensor_port;
@@ -64,6 +66,8 @@ pub struct ServeConfig {
     pub duration_s: Option<f64>,
     /// Status frames per second of loop time.
     pub heartbeat_hz: f64,
+    /// A protocol rule to break on purpose (a conformance test aid; lockstep only).
+    pub misbehave: Option<misbehaviour::Misbehaviour>,
 }
 
 /// How a serve run ended.
@@ -119,6 +123,11 @@ pub struct ServeLinks {
 /// # Errors
 /// A scene or plant that cannot be built, a link that does not open, a plant error.
 pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
+    if config.misbehave.is_some() && config.timing == TimingMode::Realtime {
+        bail!(
+            "--misbehave: the non-conforming nodes run in lockstep only, not with --timing realtime"
+        );
+    }
     let (scene, plant) = load_plant(&config.scene, config.seed)?;
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
@@ -134,6 +143,7 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
                 .has(crate::scene::Part::Sensor)
                 .then(|| scene.sensor.unwrap_or_default().measuring_rate_hz),
             "active_parts": plant.active_parts(),
+            "misbehave": config.misbehave,
         });
         let Some(fsm_uri) = config.fsm.as_deref() else {
             bail!("--fsm is required: the mirror node clocks the sensor in both timing modes");
