@@ -2,9 +2,12 @@
 //! protocol. Each check is independent of the others' verdicts and says what it saw.
 //!
 //! Mirror node (lockstep exchanges over its CAN link):
-//! - `answers_in_time`: every Step is answered by its AngleReading within the allowance.
+//! - `answers_in_time`: every Step is answered by an AngleReading within the watchdog's
+//!   allowance (a later answer is waited for up to twice that, and counted late).
 //! - `angle_sequence_gapless`: AngleReading sequence counters follow the Step counter.
-//! - `angles_in_range`: angles finite and within the mirror's range (+-1.5 deg, with margin).
+//! - `angles_in_range`: under [`EXCITATION`] (sines on both coils), angles finite and within
+//!   the mirror's range (+-1.5 deg, with margin), and each axis swinging at least
+//!   1 mrad peak to peak (frozen angles fail).
 //! - `status_frames`: Status frames arrive with a valid state.
 //! - `over_current_fault`: a coil command beyond any amplifier's limit raises an OverCurrent
 //!   fault frame.
@@ -31,10 +34,10 @@ use scanhil_protocol::ild::command::{IldCommand, IldInfo};
 use scanhil_protocol::ild::{IldError, IldValue};
 use scanhil_protocol::link::{IldLink, LinkError};
 use scanhil_protocol::message::FaultKind;
-use scanhil_protocol::plant_units::{ActuatorPair, FULL_RANGE_DEG};
+use scanhil_protocol::plant_units::{ActuatorPair, FULL_RANGE_DEG, SensingPair};
 use scanhil_protocol::slcan::SlcanMessage;
 
-use super::mirror_link::MirrorLink;
+use super::mirror_link::{LoopError, MirrorLink};
 use super::sensor_link::SensorLink;
 use super::sensor_setup::{COMMAND_TIMEOUT, stop_output};
 
@@ -60,8 +63,15 @@ const OVERLONG_COMMAND_LEN: usize = 300;
 const EXCHANGES: u64 = 2_500;
 /// A coil current no amplifier accepts, A.
 const OVER_CURRENT_A: f64 = 8.0;
+/// Periods commanded at [`OVER_CURRENT_A`], then at zero, in the over-current check.
+const OVER_CURRENT_PERIODS: u32 = 3;
 /// Margin on the mirror's range for the range check.
 const RANGE_MARGIN: f64 = 1.2;
+/// The least peak-to-peak swing each axis must show under [`EXCITATION`], rad.
+const MIN_SWING_RAD: f64 = 1e-3;
+/// How long the timing check waits for an answer, in watchdog allowances: an answer after
+/// one allowance is late, one after this many is lost (and ends the check).
+const LATE_WAIT_ALLOWANCES: u32 = 2;
 
 /// One check's verdict.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -78,6 +88,48 @@ pub struct CheckResult {
     pub time_s: f64,
 }
 
+/// The drive during the timing and range checks: a sine on each coil.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Excitation {
+    /// Amplitude of both sines, A.
+    pub amplitude_a: f64,
+    /// Frequency of coil A's sine, Hz.
+    pub a_hz: f64,
+    /// Frequency of coil B's sine, Hz (different from A's, so both axes move).
+    pub b_hz: f64,
+}
+
+/// The conformance drive: well below the current and power limits, away from the mirror's
+/// resonance, both sines starting at zero.
+pub const EXCITATION: Excitation = Excitation {
+    amplitude_a: 0.3,
+    a_hz: 40.0,
+    b_hz: 80.0,
+};
+
+impl Excitation {
+    /// The coil currents of period `k` at a period of `period_s`.
+    #[must_use]
+    pub fn at(&self, k: u64, period_s: f64) -> ActuatorPair {
+        let t_s = k as f64 * period_s;
+        let sine = |hz: f64| self.amplitude_a * (std::f64::consts::TAU * hz * t_s).sin();
+        ActuatorPair {
+            a: sine(self.a_hz),
+            b: sine(self.b_hz),
+        }
+    }
+}
+
+impl std::fmt::Display for Excitation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} A sines at {} Hz (coil A) and {} Hz (coil B)",
+            self.amplitude_a, self.a_hz, self.b_hz
+        )
+    }
+}
+
 /// Runs the mirror node's checks and, when given, the sensor's.
 pub async fn run_checks(
     mirror: &mut MirrorLink,
@@ -85,65 +137,74 @@ pub async fn run_checks(
 ) -> Vec<CheckResult> {
     let mut results = Vec::new();
     let mut k = 0u64;
-    // Timing, sequence, range, status (and the sensor stream alongside).
+    // Timing, sequence, range, status (and the sensor stream alongside), under the drive.
     let start = Instant::now();
-    let mut late: Option<String> = None;
-    let mut slowest = Duration::ZERO;
-    let mut out_of_range: Option<String> = None;
-    let limit_rad = FULL_RANGE_DEG.to_radians() * RANGE_MARGIN;
+    let allowance = mirror.total_allowance();
+    let period_s = mirror.period_s();
+    let mut timing = AnswerTiming::default();
+    let mut first_gap: Option<String> = None;
+    let mut angles_seen = AngleRange::default();
     while k < EXCHANGES {
         let t0 = Instant::now();
+        let command = EXCITATION.at(k, period_s);
+        let wait = allowance.saturating_mul(LATE_WAIT_ALLOWANCES);
         let exchange = match sensor.as_deref_mut() {
             Some(sensor) => tokio::select! {
-                r = mirror.exchange_lockstep(k, ActuatorPair::default()) => r,
+                r = mirror.exchange_lockstep_any_counter(k, command, wait) => r,
                 e = sensor.pump() => Err(e),
             },
-            None => mirror.exchange_lockstep(k, ActuatorPair::default()).await,
+            None => mirror.exchange_lockstep_any_counter(k, command, wait).await,
         };
-        slowest = slowest.max(t0.elapsed());
         match exchange {
-            Ok(angles) => {
-                let finite = angles.alpha.is_finite() && angles.beta.is_finite();
-                if out_of_range.is_none()
-                    && (!finite || angles.alpha.abs() > limit_rad || angles.beta.abs() > limit_rad)
-                {
-                    out_of_range = Some(format!(
-                        "period {k}: alpha {} rad, beta {} rad",
-                        angles.alpha, angles.beta
+            Ok((offset, angles)) => {
+                timing.answered(k, t0.elapsed(), allowance);
+                if offset != 0 && first_gap.is_none() {
+                    first_gap = Some(format!(
+                        "period {k}: AngleReading counter {}, expected {}",
+                        (k as u16).wrapping_add(offset),
+                        k as u16
                     ));
                 }
+                angles_seen.add(k, angles);
             }
             Err(error) => {
-                late = Some(format!("period {k}: {error}"));
+                timing.lost = Some(format!("period {k}: {error}"));
                 break;
             }
         }
         k += 1;
     }
-    let elapsed = start.elapsed().as_secs_f64();
     results.push(CheckResult {
         name: "answers_in_time",
         node: "fsm",
-        passed: late.is_none(),
-        detail: late.unwrap_or_else(|| format!("{k} steps answered, slowest {slowest:?}")),
-        time_s: elapsed,
+        passed: timing.passed(),
+        detail: timing.detail(k),
+        time_s: start.elapsed().as_secs_f64(),
     });
     let counters = mirror.counters();
+    let in_sequence = counters.angle_sequence_gaps == 0 && counters.angle_readings >= k;
     results.push(CheckResult {
         name: "angle_sequence_gapless",
         node: "fsm",
-        passed: counters.angle_sequence_gaps == 0 && counters.angle_readings >= k,
-        detail: format!(
-            "{} readings, {} out of sequence",
-            counters.angle_readings, counters.angle_sequence_gaps
-        ),
+        passed: in_sequence,
+        detail: match first_gap {
+            Some(first) if !in_sequence => format!(
+                "{} of {} readings out of sequence; first: {first}",
+                counters.angle_sequence_gaps, counters.angle_readings
+            ),
+            _ => format!(
+                "{} readings, {} out of sequence",
+                counters.angle_readings, counters.angle_sequence_gaps
+            ),
+        },
         time_s: 0.0,
     });
+    let in_range = angles_seen.verdict(k);
     results.push(CheckResult {
         name: "angles_in_range",
         node: "fsm",
-        passed: out_of_range.is_none() && k > 0,
-        detail: out_of_range.unwrap_or_else(|| format!("all within +-{:.3} mrad", limit_rad * 1e3)),
+        passed: in_range.is_ok(),
+        detail: in_range.unwrap_or_else(|e| e),
         time_s: 0.0,
     });
     let statuses = mirror
@@ -155,7 +216,11 @@ pub async fn run_checks(
         name: "status_frames",
         node: "fsm",
         passed: statuses > 0,
-        detail: format!("{statuses} status frames in {k} periods"),
+        detail: if statuses > 0 {
+            format!("{statuses} status frames in {k} periods")
+        } else {
+            format!("no Status frame from the node in {k} periods (a heartbeat expected)")
+        },
         time_s: 0.0,
     });
     // Over-current fault.
@@ -166,19 +231,15 @@ pub async fn run_checks(
         b: -OVER_CURRENT_A,
     };
     let mut over_current_error = None;
-    for _ in 0..3 {
-        if let Err(error) = mirror.exchange_lockstep(k, big).await {
+    for _ in 0..OVER_CURRENT_PERIODS {
+        if let Err(error) = exchange(mirror, k, big).await {
             over_current_error = Some(error.to_string());
             break;
         }
         k += 1;
     }
-    for _ in 0..3 {
-        if mirror
-            .exchange_lockstep(k, ActuatorPair::default())
-            .await
-            .is_ok()
-        {
+    for _ in 0..OVER_CURRENT_PERIODS {
+        if exchange(mirror, k, ActuatorPair::default()).await.is_ok() {
             k += 1;
         }
     }
@@ -191,7 +252,9 @@ pub async fn run_checks(
             if raised {
                 format!("OverCurrent fault frame after a {OVER_CURRENT_A} A command")
             } else {
-                format!("no OverCurrent fault after a {OVER_CURRENT_A} A command")
+                format!(
+                    "no OverCurrent fault frame after {OVER_CURRENT_PERIODS} periods at {OVER_CURRENT_A} A and {OVER_CURRENT_PERIODS} at zero (one expected)"
+                )
             }
         }),
         time_s: t0.elapsed().as_secs_f64(),
@@ -200,8 +263,8 @@ pub async fn run_checks(
     let t0 = Instant::now();
     let survived = match mirror.send_malformed(k).await {
         Err(error) => Err(format!("sending malformed input: {error}")),
-        Ok(sent) => match mirror.exchange_lockstep(k, ActuatorPair::default()).await {
-            Ok(_) => Ok(format!("{sent}; still answering")),
+        Ok(sent) => match exchange(mirror, k, ActuatorPair::default()).await {
+            Ok(()) => Ok(format!("{sent}; still answering")),
             Err(error) => Err(format!("{sent}; then: {error}")),
         },
     };
@@ -250,12 +313,143 @@ pub async fn run_checks(
         name: "link_timeout_fault",
         node: "fsm",
         passed: timeout.is_ok(),
-        detail: timeout.unwrap_or_else(|e| {
-            format!("no LinkTimeout fault from the node after the host fell silent: {e}")
+        detail: timeout.unwrap_or_else(|error| match error {
+            LoopError::LinkTimeout { waited, .. } => format!(
+                "no LinkTimeout fault from the node within {waited:?} of the host falling silent (twice the watchdog's {:?})",
+                mirror.total_allowance()
+            ),
+            other => format!("no LinkTimeout fault from the node after the host fell silent: {other}"),
         }),
         time_s: t0.elapsed().as_secs_f64(),
     });
     results
+}
+
+/// One lockstep exchange of the checks after the timing check: period `k` with `command`, any
+/// counter accepted (the sequence check has its verdict), within the watchdog's allowance.
+async fn exchange(mirror: &mut MirrorLink, k: u64, command: ActuatorPair) -> Result<(), LoopError> {
+    let wait = mirror.total_allowance();
+    mirror
+        .exchange_lockstep_any_counter(k, command, wait)
+        .await
+        .map(drop)
+}
+
+/// How the timing check's answers came: the late ones (after the allowance, but within
+/// [`LATE_WAIT_ALLOWANCES`] of it) and a lost one (never, which ends the check).
+#[derive(Debug, Default)]
+struct AnswerTiming {
+    slowest: Duration,
+    late: u64,
+    first_late: Option<String>,
+    lost: Option<String>,
+}
+
+impl AnswerTiming {
+    fn answered(&mut self, k: u64, took: Duration, allowance: Duration) {
+        self.slowest = self.slowest.max(took);
+        if took > allowance {
+            self.late += 1;
+            self.first_late.get_or_insert_with(|| {
+                format!(
+                    "period {k}: AngleReading {took:.3?} after its Step, beyond the watchdog's {allowance:?} allowance"
+                )
+            });
+        }
+    }
+
+    fn passed(&self) -> bool {
+        self.late == 0 && self.lost.is_none()
+    }
+
+    fn detail(&self, answered: u64) -> String {
+        let late = self
+            .first_late
+            .as_ref()
+            .map(|first| format!("{} of {answered} answers late; first: {first}", self.late));
+        match (&self.lost, late) {
+            (Some(lost), Some(late)) => format!("{lost}; {late}"),
+            (Some(lost), None) => lost.clone(),
+            (None, Some(late)) => late,
+            (None, None) => format!("{answered} steps answered, slowest {:?}", self.slowest),
+        }
+    }
+}
+
+/// The angles the timing check saw: the first out of the mirror's range, and each axis's
+/// extremes (the drive must move both).
+#[derive(Debug)]
+struct AngleRange {
+    out_of_range: Option<String>,
+    min_rad: SensingPair,
+    max_rad: SensingPair,
+}
+
+impl Default for AngleRange {
+    fn default() -> Self {
+        AngleRange {
+            out_of_range: None,
+            min_rad: SensingPair {
+                alpha: f64::INFINITY,
+                beta: f64::INFINITY,
+            },
+            max_rad: SensingPair {
+                alpha: f64::NEG_INFINITY,
+                beta: f64::NEG_INFINITY,
+            },
+        }
+    }
+}
+
+impl AngleRange {
+    fn limit_rad() -> f64 {
+        FULL_RANGE_DEG.to_radians() * RANGE_MARGIN
+    }
+
+    fn add(&mut self, k: u64, angles: SensingPair) {
+        let limit_rad = Self::limit_rad();
+        let inside = |angle: f64| angle.is_finite() && angle.abs() <= limit_rad;
+        if self.out_of_range.is_none() && !(inside(angles.alpha) && inside(angles.beta)) {
+            self.out_of_range = Some(format!(
+                "period {k}: alpha {:.3} mrad, beta {:.3} mrad, beyond the mirror's +-{:.3} mrad",
+                angles.alpha * 1e3,
+                angles.beta * 1e3,
+                limit_rad * 1e3
+            ));
+        }
+        self.min_rad.alpha = self.min_rad.alpha.min(angles.alpha);
+        self.min_rad.beta = self.min_rad.beta.min(angles.beta);
+        self.max_rad.alpha = self.max_rad.alpha.max(angles.alpha);
+        self.max_rad.beta = self.max_rad.beta.max(angles.beta);
+    }
+
+    /// `Ok` (what was seen) when every reading was in range and both axes swung by at least
+    /// [`MIN_SWING_RAD`] over `readings` readings; `Err` says what was expected and seen.
+    fn verdict(&self, readings: u64) -> Result<String, String> {
+        if let Some(out) = &self.out_of_range {
+            return Err(out.clone());
+        }
+        if readings == 0 {
+            return Err("no angle reading to check".to_owned());
+        }
+        let alpha = self.max_rad.alpha - self.min_rad.alpha;
+        let beta = self.max_rad.beta - self.min_rad.beta;
+        let swing = format!(
+            "alpha swung {:.3} mrad, beta {:.3} mrad peak to peak under {EXCITATION}",
+            alpha * 1e3,
+            beta * 1e3
+        );
+        if alpha < MIN_SWING_RAD || beta < MIN_SWING_RAD {
+            return Err(format!(
+                "{swing}: at least {:.3} mrad each expected (frozen or unresponsive angles)",
+                MIN_SWING_RAD * 1e3
+            ));
+        }
+        Ok(format!(
+            "all within +-{:.3} mrad; {swing}",
+            Self::limit_rad() * 1e3
+        ))
+    }
 }
 
 /// Sends the garbage lines, then one lockstep exchange (period `k`) that must be answered.
@@ -273,12 +467,10 @@ async fn survive_garbage_lines(mirror: &mut MirrorLink, k: u64) -> Option<Result
         answers.push(format!("{what}: {answer}"));
     }
     let sent = answers.join(", ");
-    Some(
-        match mirror.exchange_lockstep(k, ActuatorPair::default()).await {
-            Ok(_) => Ok(format!("{sent}; still answering")),
-            Err(error) => Err(format!("{sent}; then the next exchange failed: {error}")),
-        },
-    )
+    Some(match exchange(mirror, k, ActuatorPair::default()).await {
+        Ok(()) => Ok(format!("{sent}; still answering")),
+        Err(error) => Err(format!("{sent}; then the next exchange failed: {error}")),
+    })
 }
 
 /// Sends the bad command lines (each must be refused with an `Exx` error), then `GETINFO`

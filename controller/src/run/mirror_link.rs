@@ -61,6 +61,28 @@ impl MirrorLink {
         self.await_reading(k, (k + 1) as f64 * self.period_s).await
     }
 
+    /// Conformance: lockstep period `k` as [`Self::exchange_lockstep`], but takes the first
+    /// AngleReading not older than period `k` whatever its counter, waiting at most `wait`.
+    /// Returns the counter's offset from `k` (0: in sequence; anything else is counted as a
+    /// gap) and the angles. Older readings (late answers to earlier periods) are counted and
+    /// skipped.
+    ///
+    /// # Errors
+    /// As [`Self::exchange_lockstep`]; the timeout after `wait`.
+    pub async fn exchange_lockstep_any_counter(
+        &mut self,
+        k: u64,
+        command_a: ActuatorPair,
+        wait: Duration,
+    ) -> Result<(u16, SensingPair), LoopError> {
+        for frame in period_frames(k, command_a, self.period_s)? {
+            self.send_stamped(&frame).await?;
+        }
+        let t_s = (k + 1) as f64 * self.period_s;
+        self.await_reading_where(k, t_s, wait, |offset| offset.cast_signed() >= 0)
+            .await
+    }
+
     /// Real time: waits for the next AngleReading the clock master sends; returns its period
     /// (unwrapped against `expected`) and angles.
     ///
@@ -224,6 +246,12 @@ impl MirrorLink {
         }
     }
 
+    /// The control period, s.
+    #[must_use]
+    pub fn period_s(&self) -> f64 {
+        self.period_s
+    }
+
     /// The link's name.
     #[must_use]
     pub fn name(&self) -> &str {
@@ -239,15 +267,31 @@ impl MirrorLink {
 
     async fn await_reading(&mut self, k: u64, t_s: f64) -> Result<SensingPair, LoopError> {
         let allowance = self.total_allowance();
-        let deadline = tokio::time::Instant::now() + allowance;
+        let (_, angles) = self
+            .await_reading_where(k, t_s, allowance, |offset| offset == 0)
+            .await?;
+        Ok(angles)
+    }
+
+    /// Waits at most `wait` for an AngleReading whose counter's offset from period `k` is
+    /// `accept`ed; every reading on the way is counted.
+    async fn await_reading_where(
+        &mut self,
+        k: u64,
+        t_s: f64,
+        wait: Duration,
+        accept: impl Fn(u16) -> bool,
+    ) -> Result<(u16, SensingPair), LoopError> {
+        let deadline = tokio::time::Instant::now() + wait;
         loop {
             let frame = tokio::time::timeout_at(deadline, self.recv_at(t_s))
                 .await
-                .map_err(|_| self.timeout(k, allowance))??;
-            if let Some((seq, angles)) = self.classify(&frame, t_s)?
-                && self.inbox.count_reading(seq, k) == 0
-            {
-                return Ok(angles);
+                .map_err(|_| self.timeout(k, wait))??;
+            if let Some((seq, angles)) = self.classify(&frame, t_s)? {
+                let offset = self.inbox.count_reading(seq, k);
+                if accept(offset) {
+                    return Ok((offset, angles));
+                }
             }
         }
     }
