@@ -1,6 +1,28 @@
-//! `scanhil conformance` against the emulator, with JUnit XML.
+//! `scanhil conformance` against the emulator, and against deliberately non-conforming nodes
+//! (`scanhil-emulator serve --misbehave RULE`), each failing exactly the check(s) for its rule
+//! with the reason in the JUnit XML.
 
 use crate::util::{assert_success, fixture, run_scanhil};
+
+/// The mirror node's checks, in the order conformance runs them (SLCAN link, no sensor).
+const FSM_CHECKS: [&str; 8] = [
+    "answers_in_time",
+    "angle_sequence_gapless",
+    "angles_in_range",
+    "status_frames",
+    "over_current_fault",
+    "survives_malformed_frames",
+    "survives_garbage_slcan_lines",
+    "link_timeout_fault",
+];
+
+/// The sensor's checks (on its ILD line).
+const SENSOR_CHECKS: [&str; 4] = [
+    "sensor_values_decode",
+    "sensor_counter_gapless",
+    "sensor_values_in_range",
+    "sensor_survives_bad_commands",
+];
 
 #[test]
 fn the_emulator_passes_every_conformance_check() {
@@ -19,20 +41,7 @@ fn the_emulator_passes_every_conformance_check() {
     ]);
     assert_success(&output, "scanhil conformance");
     let table = String::from_utf8_lossy(&output.stdout);
-    for check in [
-        "answers_in_time",
-        "angle_sequence_gapless",
-        "angles_in_range",
-        "status_frames",
-        "over_current_fault",
-        "survives_malformed_frames",
-        "survives_garbage_slcan_lines",
-        "sensor_values_decode",
-        "sensor_counter_gapless",
-        "sensor_values_in_range",
-        "sensor_survives_bad_commands",
-        "link_timeout_fault",
-    ] {
+    for check in FSM_CHECKS.iter().chain(&SENSOR_CHECKS) {
         let line = table
             .lines()
             .find(|line| line.contains(check))
@@ -42,23 +51,46 @@ fn the_emulator_passes_every_conformance_check() {
     let xml = std::fs::read_to_string(&junit).expect("JUnit XML written");
     assert!(xml.contains("tests=\"12\" failures=\"0\""), "{xml}");
     assert_eq!(xml.matches("<testcase ").count(), 12, "{xml}");
-    // The new checks say what they sent and that the device still answered.
+    // The checks say what they sent and that the device still answered (or moved).
     for (check, seen) in [
         ("survives_garbage_slcan_lines", "still answering"),
         ("sensor_survives_bad_commands", "GETINFO still answered"),
+        ("angles_in_range", "peak to peak under 0.3 A sines"),
     ] {
         let line = table.lines().find(|line| line.contains(check)).unwrap();
         assert!(line.contains(seen), "{line}");
     }
 }
 
+/// What `scanhil conformance` made of a deliberately non-conforming node.
+struct Verdict {
+    /// The rule the node broke.
+    rule: String,
+    /// `scanhil conformance`'s exit code.
+    code: Option<i32>,
+    /// The pass/fail table it printed.
+    table: String,
+    /// The JUnit XML it wrote.
+    xml: String,
+    /// The emulator's exit code once conformance was done (`None`: still running).
+    emulator_code: Option<i32>,
+}
+
 /// Runs `scanhil conformance` on the mirror node of a hand-started emulator served with
-/// `emulator_args`; returns the exit code, the table and the JUnit XML.
-fn conformance_against(emulator_args: &[&str]) -> (Option<i32>, String, String) {
+/// `--misbehave rule` (its watchdog the 50 periods of 10 ms conformance expects).
+fn conformance_against(rule: &str) -> Verdict {
     let scene = fixture("scenes/duplo-2x4-130mm.json");
-    let mut args = vec!["--scene", scene.as_str(), "--fsm", "slcan:pty"];
-    args.extend_from_slice(emulator_args);
-    let emulator = crate::util::ServedEmulator::start(&args);
+    let mut emulator = crate::util::ServedEmulator::start(&[
+        "--scene",
+        &scene,
+        "--fsm",
+        "slcan:pty",
+        "--watchdog-periods",
+        "50",
+        "--misbehave",
+        rule,
+    ]);
+    assert_eq!(emulator.ready["misbehave"], rule, "{}", emulator.ready);
     let out = tempfile::tempdir().expect("a temporary folder");
     let junit = out.path().join("conformance.xml");
     let fsm = format!("slcan:{}", emulator.path("fsm"));
@@ -66,46 +98,199 @@ fn conformance_against(emulator_args: &[&str]) -> (Option<i32>, String, String) 
         "conformance",
         "--fsm",
         &fsm,
+        "--watchdog-periods",
+        "50",
         "--junit",
         junit.to_str().expect("UTF-8 path"),
     ]);
+    let emulator_code = emulator
+        .child
+        .try_wait()
+        .expect("asking after the emulator")
+        .and_then(|status| status.code());
     drop(emulator);
-    let xml = std::fs::read_to_string(&junit).unwrap_or_default();
-    (
-        output.status.code(),
-        String::from_utf8_lossy(&output.stdout).into_owned(),
-        xml,
-    )
+    Verdict {
+        rule: rule.to_owned(),
+        code: output.status.code(),
+        table: String::from_utf8_lossy(&output.stdout).into_owned(),
+        xml: std::fs::read_to_string(&junit).unwrap_or_default(),
+        emulator_code,
+    }
+}
+
+impl Verdict {
+    /// Asserts that exactly `failing` of the mirror node's checks failed (in the table, the
+    /// JUnit XML and the exit code), every other one passed, and that each failure's JUnit
+    /// message contains all of its `reasons`.
+    fn assert_fails_exactly(&self, failing: &[(&str, &[&str])]) {
+        let Verdict {
+            rule, table, xml, ..
+        } = self;
+        assert_eq!(self.code, Some(1), "{rule}: conformance fails:\n{table}");
+        for check in FSM_CHECKS {
+            let line = table
+                .lines()
+                .find(|line| line.starts_with("fsm ") && line.contains(check))
+                .unwrap_or_else(|| panic!("{rule}: {check} missing from:\n{table}"));
+            let expected = if failing.iter().any(|(name, _)| *name == check) {
+                "FAIL"
+            } else {
+                "PASS"
+            };
+            assert!(
+                line.contains(expected),
+                "{rule}: {check} should {expected}: {line}"
+            );
+        }
+        assert_eq!(xml.matches("<testcase ").count(), FSM_CHECKS.len(), "{xml}");
+        assert!(
+            xml.contains(&format!("failures=\"{}\"", failing.len())),
+            "{rule}: {xml}"
+        );
+        assert_eq!(xml.matches("<failure ").count(), failing.len(), "{xml}");
+        for (check, reasons) in failing {
+            let message = failure_message(xml, check);
+            for reason in *reasons {
+                assert!(
+                    message.contains(reason),
+                    "{rule}: the {check} failure should say `{reason}`: {message}"
+                );
+            }
+        }
+    }
+}
+
+/// The `message` of `check`'s JUnit `failure` element (unescaped).
+fn failure_message(xml: &str, check: &str) -> String {
+    let case = xml
+        .split("<testcase ")
+        .find(|case| case.contains(&format!("name=\"{check}\"")))
+        .unwrap_or_else(|| panic!("no testcase {check} in:\n{xml}"));
+    let message = case
+        .split_once("<failure message=\"")
+        .and_then(|(_, rest)| rest.split_once('"'))
+        .unwrap_or_else(|| panic!("no failure message for {check}: {case}"))
+        .0;
+    message
+        .replace("&quot;", "\"")
+        .replace("&lt;", "<")
+        .replace("&gt;", ">")
+        .replace("&amp;", "&")
 }
 
 #[test]
 fn a_node_without_a_watchdog_fails_the_link_timeout_check() {
-    // The emulator with a watchdog no check waits for (10^6 periods of 10 ms): a node that
-    // keeps its coils driven when the host goes silent. Only link_timeout_fault may fail, and
-    // the JUnit XML says why.
-    let (code, table, xml) = conformance_against(&["--watchdog-periods", "1000000"]);
-    assert_eq!(code, Some(1), "conformance fails:\n{table}");
-    let line = table
-        .lines()
-        .find(|line| line.contains("link_timeout_fault"))
-        .unwrap_or_else(|| panic!("no link_timeout_fault in:\n{table}"));
-    assert!(line.contains("FAIL"), "{line}");
-    for other in table
-        .lines()
-        .filter(|l| l.starts_with("fsm ") && !l.contains("link_timeout_fault"))
-    {
-        assert!(
-            other.contains("PASS"),
-            "only the watchdog check fails: {other}"
-        );
-    }
-    assert!(xml.contains("failures=\"1\""), "{xml}");
-    let case = xml
-        .split("<testcase ")
-        .find(|case| case.contains("link_timeout_fault"))
-        .expect("a testcase for link_timeout_fault");
+    // A node that keeps its coils driven when the host goes silent.
+    conformance_against("no-watchdog").assert_fails_exactly(&[(
+        "link_timeout_fault",
+        &[
+            "no LinkTimeout fault from the node within 1s",
+            "watchdog's 500ms",
+        ],
+    )]);
+}
+
+#[test]
+fn a_node_answering_late_fails_the_timing_check() {
+    // Period 1000 is answered after 750 ms, beyond the 500 ms allowance; its counter is right.
+    conformance_against("late-answers").assert_fails_exactly(&[(
+        "answers_in_time",
+        &[
+            "1 of 2500 answers late",
+            "period 1000: AngleReading 7",
+            "after its Step, beyond the watchdog's 500ms allowance",
+        ],
+    )]);
+}
+
+#[test]
+fn a_node_skipping_a_counter_fails_the_sequence_check() {
+    conformance_against("sequence-gaps").assert_fails_exactly(&[(
+        "angle_sequence_gapless",
+        &[
+            "1500 of 2500 readings out of sequence",
+            "period 1000: AngleReading counter 1001, expected 1000",
+        ],
+    )]);
+}
+
+#[test]
+fn a_node_reporting_angles_out_of_range_fails_the_range_check() {
+    // Ten times the true angles: near zero at rest, beyond the mirror's range under the drive.
+    conformance_against("out-of-range").assert_fails_exactly(&[(
+        "angles_in_range",
+        &["alpha", "mrad, beyond the mirror's +-31.416 mrad"],
+    )]);
+}
+
+#[test]
+fn a_node_with_frozen_angles_fails_the_range_check() {
+    conformance_against("frozen-angles").assert_fails_exactly(&[(
+        "angles_in_range",
+        &[
+            "alpha swung 0.000 mrad, beta 0.000 mrad peak to peak under 0.3 A sines",
+            "at least 1.000 mrad each expected",
+        ],
+    )]);
+}
+
+#[test]
+fn a_node_without_fault_frames_fails_the_over_current_check() {
+    conformance_against("no-fault-frame").assert_fails_exactly(&[(
+        "over_current_fault",
+        &[
+            "no OverCurrent fault frame after 3 periods at 8 A",
+            "(one expected)",
+        ],
+    )]);
+}
+
+#[test]
+fn a_node_without_status_frames_fails_the_status_check() {
+    conformance_against("no-status-frame").assert_fails_exactly(&[(
+        "status_frames",
+        &["no Status frame from the node in 2500 periods"],
+    )]);
+}
+
+#[test]
+fn a_node_dying_on_garbage_fails_the_garbage_check_and_leaves_no_watchdog() {
+    // It exits at the first frame after the garbage lines: the exchange after them fails, and
+    // a node that is gone sends no LinkTimeout fault either.
+    let verdict = conformance_against("dies-on-garbage");
+    verdict.assert_fails_exactly(&[
+        (
+            "survives_garbage_slcan_lines",
+            &[
+                "unknown command `xyz`: BEL",
+                "a 200-byte line: BEL; then the next exchange failed",
+                "hung up",
+            ],
+        ),
+        (
+            "link_timeout_fault",
+            &["the node hung up without a LinkTimeout fault"],
+        ),
+    ]);
+    assert_eq!(
+        verdict.emulator_code,
+        Some(1),
+        "the node died with an error"
+    );
+}
+
+#[test]
+fn a_misbehaving_node_is_refused_in_real_time() {
+    let output = std::process::Command::new(crate::util::emulator())
+        .args(["serve", "--scene", &fixture("scenes/duplo-2x4-130mm.json")])
+        .args(["--fsm", "slcan:pty", "--timing", "realtime"])
+        .args(["--misbehave", "late-answers"])
+        .output()
+        .expect("running scanhil-emulator");
+    assert!(!output.status.success(), "refused");
+    let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(
-        case.contains("<failure message=\"no LinkTimeout fault from the node"),
-        "{case}"
+        stderr.contains("--misbehave: the non-conforming nodes run in lockstep only"),
+        "{stderr}"
     );
 }

@@ -17,7 +17,7 @@ mod determinism;
 mod sensor_transports;
 // The controller's watchdog: a frozen or killed emulator stops the scan with a link timeout.
 mod controller_watchdog;
-// Conformance checks against the emulator, with JUnit XML.
+// Conformance checks against the emulator and deliberately non-conforming nodes, with JUnit XML.
 mod conformance;
 // Real time: statistics present and sane; bus-load refusal before a run.
 mod timing;
