@@ -621,3 +621,74 @@ fn escape(text: &str) -> String {
         .replace('>', "&gt;")
         .replace('"', "&quot;")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const PERIOD_S: f64 = 5e-5;
+
+    #[test]
+    fn the_drive_starts_at_zero_and_stays_within_its_amplitude() {
+        assert_eq!(EXCITATION.at(0, PERIOD_S), ActuatorPair::default());
+        let peak = (0..EXCHANGES)
+            .map(|k| EXCITATION.at(k, PERIOD_S))
+            .map(|c| c.a.abs().max(c.b.abs()))
+            .fold(0.0, f64::max);
+        assert!(peak <= EXCITATION.amplitude_a && peak > 0.99 * EXCITATION.amplitude_a);
+    }
+
+    fn verdict(angles: impl Fn(u64) -> SensingPair) -> Result<String, String> {
+        let mut range = AngleRange::default();
+        for k in 0..100 {
+            range.add(k, angles(k));
+        }
+        range.verdict(100)
+    }
+
+    #[test]
+    fn angles_pass_only_in_range_and_moving_on_both_axes() {
+        let swing = |k: u64| (k as f64 * 0.1).sin() * 5e-3;
+        let moving = verdict(|k| SensingPair {
+            alpha: swing(k),
+            beta: -swing(k),
+        });
+        assert!(moving.is_ok_and(|seen| seen.contains("alpha swung")));
+        let frozen = verdict(|_| SensingPair {
+            alpha: 1e-3,
+            beta: 1e-3,
+        });
+        assert!(frozen.is_err_and(|why| why.contains("alpha swung 0.000 mrad, beta 0.000 mrad")));
+        let one_axis = verdict(|k| SensingPair {
+            alpha: swing(k),
+            beta: 0.0,
+        });
+        assert!(one_axis.is_err_and(|why| why.contains("beta 0.000 mrad")));
+        let beyond = verdict(|k| SensingPair {
+            alpha: if k == 42 { 0.05 } else { swing(k) },
+            beta: swing(k),
+        });
+        assert!(beyond.is_err_and(|why| why.starts_with("period 42: alpha 50.000 mrad")));
+        let not_finite = verdict(|k| SensingPair {
+            alpha: swing(k),
+            beta: if k == 7 { f64::NAN } else { swing(k) },
+        });
+        assert!(not_finite.is_err_and(|why| why.starts_with("period 7:")));
+    }
+
+    #[test]
+    fn a_late_answer_is_counted_and_named_and_fails_the_timing() {
+        let allowance = Duration::from_millis(500);
+        let mut timing = AnswerTiming::default();
+        timing.answered(0, Duration::from_millis(3), allowance);
+        assert!(timing.passed());
+        timing.answered(1, Duration::from_millis(750), allowance);
+        timing.answered(2, Duration::from_millis(600), allowance);
+        assert!(!timing.passed());
+        let detail = timing.detail(3);
+        assert!(
+            detail.starts_with("2 of 3 answers late; first: period 1: AngleReading 750.000ms"),
+            "{detail}"
+        );
+    }
+}
