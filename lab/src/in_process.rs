@@ -361,11 +361,14 @@ impl Transport {
 
     /// Flushes the recordings; returns the host's decoded sensor samples and counters.
     fn finish(
-        self,
+        mut self,
     ) -> anyhow::Result<(
         Vec<scanhil_controller::run::sensor_link::CountedSample>,
         scanhil_controller::run::sensor_link::SensorCounters,
     )> {
+        if let Some(capture) = &mut self.capture {
+            capture.flush().context("recording the mirror's link")?;
+        }
         match self.sensor {
             None => Ok(Default::default()),
             Some(mut sensor) => {

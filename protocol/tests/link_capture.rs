@@ -1,11 +1,14 @@
-//! Capture on its own: candump lines stamped with the virtual clock the loop sets.
+//! Capture on its own: candump lines stamped with the virtual clock the loop sets; what it
+//! holds is written with one `write` per flush, and never much more than its bound is held.
 
 mod support;
 
 use std::time::Duration;
 
 use scanhil_protocol::can::{CanFrame, CanId};
-use scanhil_protocol::link::{CanCapture, CaptureClock, VirtualClock};
+use scanhil_protocol::link::{
+    ByteCapture, CAPTURE_FLUSH_BYTES, CanCapture, CaptureClock, VirtualClock,
+};
 
 use support::SharedBuffer;
 
@@ -17,6 +20,53 @@ fn can_capture_writes_candump_lines_at_virtual_time() {
     let frame = CanFrame::new(CanId::standard(0x110).unwrap(), &[0xDE, 0xAD]).unwrap();
     clock.set(Duration::from_micros(1_000_050));
     capture.record(&frame).unwrap();
+    capture.flush().unwrap();
     let text = String::from_utf8(out.bytes()).unwrap();
     assert_eq!(text, "(1.000050) fsm 110#DEAD\n");
+}
+
+fn frame() -> CanFrame {
+    CanFrame::new(CanId::standard(0x110).unwrap(), &[1, 2, 3, 4, 5, 6, 7, 8]).unwrap()
+}
+
+#[test]
+fn a_can_capture_writes_what_it_holds_with_one_write_per_flush() {
+    let out = SharedBuffer::default();
+    let mut capture = CanCapture::new(out.clone(), "fsm", CaptureClock::Wall);
+    for _ in 0..4 {
+        capture.record(&frame()).unwrap();
+    }
+    assert_eq!(out.writes(), 0);
+    capture.flush().unwrap();
+    assert_eq!(out.writes(), 1);
+    let one_line = out.bytes().len() / 4;
+    capture.flush().unwrap();
+    assert_eq!(out.writes(), 1, "an empty flush writes nothing");
+    capture.record(&frame()).unwrap();
+    drop(capture);
+    assert_eq!(
+        (out.writes(), out.bytes().len()),
+        (2, 5 * one_line),
+        "drop writes the rest"
+    );
+}
+
+#[test]
+fn a_capture_never_holds_much_more_than_its_bound() {
+    let out = SharedBuffer::default();
+    let mut capture = ByteCapture::new(out.clone()).with_sent(SharedBuffer::default());
+    let chunk = [0x5A_u8; 1000];
+    for _ in 0..1000 {
+        capture.record_received(&chunk).unwrap();
+    }
+    let held = 1000 * chunk.len() - out.bytes().len();
+    assert!(held < CAPTURE_FLUSH_BYTES, "{held} bytes held");
+    let chunks_per_write = CAPTURE_FLUSH_BYTES.div_ceil(chunk.len());
+    assert_eq!(
+        out.writes(),
+        1000 / chunks_per_write,
+        "one write per bound's worth"
+    );
+    capture.flush().unwrap();
+    assert_eq!(out.bytes().len(), 1000 * chunk.len());
 }

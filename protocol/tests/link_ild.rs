@@ -259,6 +259,7 @@ async fn the_raw_capture_holds_exactly_the_bytes_that_crossed() {
         answer_one(&mut device, false)
     );
     reply.unwrap();
+    host.flush_capture().unwrap();
     let received = received.bytes();
     assert_eq!(&received[..expected.len()], &expected[..]);
     assert!(received.ends_with(b"->"));

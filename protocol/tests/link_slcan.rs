@@ -358,6 +358,7 @@ async fn the_capture_records_every_frame_as_a_candump_line_in_order() {
         device.send(frame).await.unwrap();
         host.recv().await.unwrap();
     }
+    host.flush_capture().unwrap();
     let text = String::from_utf8(log.bytes()).unwrap();
     let entries: Vec<_> = text
         .lines()
@@ -374,6 +375,44 @@ async fn the_capture_records_every_frame_as_a_candump_line_in_order() {
         text.starts_with("(0.000000) fsm 100#0102030405060708\n"),
         "{text}"
     );
+}
+
+/// A lockstep period as the loop runs it: the host queues its frames and flushes once; its
+/// capture writes once per period (before it waits for the answer), lines in order, and the
+/// rest when flushed at the end.
+#[tokio::test]
+async fn the_capture_writes_once_per_period_in_order() {
+    let (mut host, mut device) = host_and_device("").await;
+    let log = SharedBuffer::default();
+    host.set_capture(CanCapture::new(log.clone(), "fsm", CaptureClock::Wall));
+    let frames = sample_frames();
+    let periods = 20;
+    for k in 0..periods {
+        host.queue(&frames[0]).await.unwrap();
+        host.queue(&frames[1]).await.unwrap();
+        assert_eq!(
+            log.writes(),
+            k,
+            "nothing written while the period is queued"
+        );
+        host.flush().await.unwrap();
+        assert_eq!(device.recv().await.unwrap(), frames[0]);
+        assert_eq!(device.recv().await.unwrap(), frames[1]);
+        device.send(&frames[2]).await.unwrap();
+        assert_eq!(host.recv().await.unwrap(), frames[2]);
+        assert_eq!(log.writes(), k + 1, "one capture write in period {k}");
+    }
+    host.flush_capture().unwrap();
+    assert_eq!(log.writes(), periods + 1);
+    let text = String::from_utf8(log.bytes()).unwrap();
+    let recorded: Vec<_> = text
+        .lines()
+        .map(|line| candump::parse_line(line).unwrap().frame)
+        .collect();
+    let expected: Vec<_> = (0..periods)
+        .flat_map(|_| frames[..3].iter().copied())
+        .collect();
+    assert_eq!(recorded, expected);
 }
 
 #[tokio::test]

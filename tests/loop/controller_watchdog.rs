@@ -2,13 +2,9 @@
 //! mid-run; the scan stops with a link timeout / hang-up, commands zero, exits non-zero, and
 //! what it recorded stays valid.
 
-use std::process::Command;
-
 use scanhil_protocol::message::Message;
 
-use crate::util::{
-    ServedEmulator, decode_candump, fixture, recording_grows, report, scanhil, signal,
-};
+use crate::util::{decode_candump, recording_grows, report, scan_against_served_emulator, signal};
 
 /// Runs a long scan against a hand-started emulator with the scan's watchdog at
 /// `watchdog_periods` (of the scenario's 50 ms allowance), sends the emulator `signal_name`
@@ -17,32 +13,13 @@ fn scan_and_signal(
     signal_name: &str,
     watchdog_periods: u32,
 ) -> (Option<i32>, String, tempfile::TempDir) {
-    let emulator = ServedEmulator::start(&[
-        "--scene",
-        &fixture("scenes/loop-fast.json"),
-        "--fsm",
-        "slcan:pty",
-    ]);
     let out = tempfile::tempdir().expect("a temporary folder");
-    let fsm = format!("slcan:{}", emulator.path("fsm"));
-    let child = Command::new(scanhil())
-        .args([
-            "scan",
-            &fixture("scenarios/test-loop-small.json"),
-            "--fsm",
-            &fsm,
-            "--no-emulator",
-            "--duration-s",
-            "60",
-            "--watchdog-periods",
-            &watchdog_periods.to_string(),
-            "--out",
-            out.path().to_str().expect("UTF-8 path"),
-        ])
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("starting scanhil");
+    let periods = watchdog_periods.to_string();
+    let (emulator, child) = scan_against_served_emulator(
+        out.path(),
+        &[],
+        &["--duration-s", "60", "--watchdog-periods", &periods],
+    );
     // Let the loop run, then stop the emulator.
     let _ = recording_grows(out.path(), 10_000);
     signal(emulator.child.id(), signal_name);

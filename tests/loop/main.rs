@@ -25,5 +25,7 @@ mod timing;
 mod rig_alone;
 // An interrupted scan (Ctrl-C, SIGTERM): zero current, C sent, outputs written, exit 3.
 mod interrupted;
+// A killed scan (SIGKILL): its recording holds whole lines up to the period in flight.
+mod killed;
 // The output folder: one scan at a time, no stale files after a re-scan.
 mod out_folder;

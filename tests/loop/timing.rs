@@ -3,12 +3,11 @@
 //! planned period, a long stall of the host trips the watchdogs with the coils at zero; and
 //! the bus-load refusal before a run.
 
-use std::process::Command;
 use std::time::Duration;
 
 use crate::util::{
-    ServedEmulator, decode_candump, fixture, number, recording_grows, report, run_scanhil, scanhil,
-    signal,
+    ServedEmulator, decode_candump, fixture, number, recording_grows, report, run_scanhil,
+    scan_against_served_emulator, signal,
 };
 
 /// Asserts what must hold of one [`PeriodStats`] block at `side` in `report`, whatever the
@@ -112,38 +111,19 @@ fn realtime_run(
     bytes: u64,
 ) -> (ServedEmulator, std::process::Child, tempfile::TempDir) {
     let periods = watchdog_periods.to_string();
-    let emulator = ServedEmulator::start(&[
-        "--scene",
-        &fixture("scenes/loop-fast.json"),
-        "--fsm",
-        "slcan:pty",
-        "--timing",
-        "realtime",
-        "--watchdog-periods",
-        &periods,
-    ]);
     let out = tempfile::tempdir().expect("a temporary folder");
-    let fsm = format!("slcan:{}", emulator.path("fsm"));
-    let mut child = Command::new(scanhil())
-        .args([
-            "scan",
-            &fixture("scenarios/test-loop-small.json"),
-            "--fsm",
-            &fsm,
-            "--no-emulator",
+    let (emulator, mut child) = scan_against_served_emulator(
+        out.path(),
+        &["--timing", "realtime", "--watchdog-periods", &periods],
+        &[
             "--timing",
             "realtime",
             "--duration-s",
             &duration_s.to_string(),
             "--watchdog-periods",
             &host_watchdog_periods.to_string(),
-            "--out",
-            out.path().to_str().expect("UTF-8 path"),
-        ])
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("starting scanhil");
+        ],
+    );
     if recording_grows(out.path(), bytes) {
         return (emulator, child, out);
     }

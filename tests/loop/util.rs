@@ -431,6 +431,37 @@ pub fn recording_grows(out: &Path, bytes: u64) -> bool {
     })
 }
 
+/// Starts an emulator serving the mirror node (`loop-fast` scene) on a pty with
+/// `emulator_args`, and a `scanhil scan` of test-loop-small against it (`--no-emulator`,
+/// stdout dropped, stderr piped) with `scan_args`, into `out`.
+pub fn scan_against_served_emulator(
+    out: &Path,
+    emulator_args: &[&str],
+    scan_args: &[&str],
+) -> (ServedEmulator, std::process::Child) {
+    let scene = fixture("scenes/loop-fast.json");
+    let mut args = vec!["--scene", &scene, "--fsm", "slcan:pty"];
+    args.extend_from_slice(emulator_args);
+    let emulator = ServedEmulator::start(&args);
+    let fsm = format!("slcan:{}", emulator.path("fsm"));
+    let child = Command::new(scanhil())
+        .args([
+            "scan",
+            &fixture("scenarios/test-loop-small.json"),
+            "--fsm",
+            &fsm,
+            "--no-emulator",
+            "--out",
+            out.to_str().expect("UTF-8 path"),
+        ])
+        .args(scan_args)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("starting scanhil");
+    (emulator, child)
+}
+
 /// Sends signal `name` (`STOP`, `CONT`, `KILL`, `INT`, ...) to process `pid`.
 pub fn signal(pid: u32, name: &str) {
     let status = Command::new("kill")

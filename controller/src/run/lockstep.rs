@@ -30,11 +30,8 @@ pub async fn run(
         let received: Result<CanFrame, LoopError> = match host.next_action() {
             HostAction::Done => break,
             HostAction::Send(frames) => {
-                for frame in &frames {
-                    if let Err(error) = mirror.send_stamped(frame).await {
-                        host.on_error(error);
-                        break;
-                    }
+                if let Err(error) = mirror.send_period(&frames).await {
+                    host.on_error(error);
                 }
                 // Each wait's allowance starts when its frames went out.
                 deadline = tokio::time::Instant::now() + allowance;

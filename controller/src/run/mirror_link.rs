@@ -55,9 +55,8 @@ impl MirrorLink {
         k: u64,
         command_a: ActuatorPair,
     ) -> Result<SensingPair, LoopError> {
-        for frame in period_frames(k, command_a, self.period_s)? {
-            self.send_stamped(&frame).await?;
-        }
+        self.send_period(&period_frames(k, command_a, self.period_s)?)
+            .await?;
         self.await_reading(k, (k + 1) as f64 * self.period_s).await
     }
 
@@ -214,8 +213,20 @@ impl MirrorLink {
     /// # Errors
     /// Link errors.
     pub async fn send_stamped(&mut self, frame: &StampedFrame) -> Result<(), LoopError> {
-        self.at(frame.t_s);
-        self.port.send(&frame.frame).await?;
+        self.send_period(std::slice::from_ref(frame)).await
+    }
+
+    /// Sends one period's frames with one write (SLCAN), each recorded stamped with its
+    /// loop time (lockstep).
+    ///
+    /// # Errors
+    /// Link errors.
+    pub async fn send_period(&mut self, frames: &[StampedFrame]) -> Result<(), LoopError> {
+        for frame in frames {
+            self.at(frame.t_s);
+            self.port.queue(&frame.frame).await?;
+        }
+        self.port.flush().await?;
         Ok(())
     }
 

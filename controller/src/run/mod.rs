@@ -227,6 +227,11 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         // Closing the mirror link (`C` on SLCAN) ends the emulator's run; the sensor stream
         // then drains. A failed close (the node is gone) leaves nothing open.
         let _ = links.mirror.close().await;
+        links
+            .mirror
+            .can_link_mut()
+            .flush_capture()
+            .context("writing the mirror link's recording")?;
         drop(links.mirror);
         links
             .sensor
@@ -242,7 +247,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             can_distances,
             mirror_counters,
             node_events,
-            sensor: links.sensor.snapshot(),
+            sensor: links.sensor.take_samples(),
             sensor_setup: links.sensor_setup,
             emulator_summary,
             run_time_s: started.elapsed().as_secs_f64(),

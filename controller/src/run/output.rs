@@ -82,17 +82,25 @@ pub fn write(
     let rig = &scenario.rig;
     let measuring_rate_hz = rig.sensor.map_or(0.0, |sensor| sensor.measuring_rate_hz);
     let range = rig.sensor.map(|sensor| sensor.range());
-    let (mut counted, sensor_counters) = run.sensor.clone();
-    let mut can_counter = CounterUnwrapper::new(ILD_COUNTER_MODULUS);
-    counted.extend(
-        run.can_distances
-            .iter()
-            .map(|&(counter, value, arrived)| CountedSample {
-                counter: can_counter.unwrap(u64::from(counter)),
-                value,
-                arrived,
-            }),
-    );
+    let (ild_samples, sensor_counters) = &run.sensor;
+    let sensor_counters = *sensor_counters;
+    // The ILD stream's samples are used in place; only Distance frames (a sensor on CAN)
+    // are turned into samples here.
+    let counted: std::borrow::Cow<'_, [CountedSample]> =
+        if run.can_distances.is_empty() {
+            std::borrow::Cow::Borrowed(ild_samples)
+        } else {
+            let mut can_counter = CounterUnwrapper::new(ILD_COUNTER_MODULUS);
+            let mut counted = ild_samples.clone();
+            counted.extend(run.can_distances.iter().map(|&(counter, value, arrived)| {
+                CountedSample {
+                    counter: can_counter.unwrap(u64::from(counter)),
+                    value,
+                    arrived,
+                }
+            }));
+            std::borrow::Cow::Owned(counted)
+        };
     let clock = match (clock, record.loop_epoch) {
         (Some(declared), _) => declared,
         (None, Some(epoch)) => estimate_sensor_clock(&counted, epoch, measuring_rate_hz),

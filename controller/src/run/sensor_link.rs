@@ -141,17 +141,18 @@ impl SensorLink {
         }
     }
 
-    /// Reads what is still in flight: until the peer hangs up or nothing arrives for `quiet`.
+    /// Reads what is still in flight: until the peer hangs up or nothing arrives for `quiet`;
+    /// then writes the rest of the recording.
     ///
     /// # Errors
-    /// A link error other than the hang-up.
+    /// A link error other than the hang-up; the recording's.
     pub async fn drain(&mut self, quiet: Duration) -> Result<(), LinkError> {
         let SensorLink::Ild(stream) = self else {
             return Ok(());
         };
         loop {
             match stream.link.recv_cycle_timeout(quiet).await {
-                Ok(None) | Err(LinkError::HangUp { .. }) => return Ok(()),
+                Ok(None) | Err(LinkError::HangUp { .. }) => return stream.link.flush_capture(),
                 Err(error) => return Err(error),
                 Ok(Some(cycle)) => stream.log.add(&cycle),
             }
@@ -164,6 +165,18 @@ impl SensorLink {
         match self {
             SensorLink::Elsewhere => (Vec::new(), SensorCounters::default()),
             SensorLink::Ild(stream) => stream.log.snapshot(stream.link.counters()),
+        }
+    }
+
+    /// The samples and counters, handed over without a copy; the link's log is empty
+    /// afterwards.
+    pub fn take_samples(&mut self) -> (Vec<CountedSample>, SensorCounters) {
+        match self {
+            SensorLink::Elsewhere => (Vec::new(), SensorCounters::default()),
+            SensorLink::Ild(stream) => {
+                let counters = stream.log.counters(stream.link.counters());
+                (std::mem::take(&mut stream.log.samples), counters)
+            }
         }
     }
 }
@@ -223,12 +236,16 @@ impl SampleLog {
 
     /// The samples, and the counters with the line's.
     fn snapshot(&self, line: &IldCounters) -> (Vec<CountedSample>, SensorCounters) {
-        let counters = SensorCounters {
+        (self.samples.clone(), self.counters(line))
+    }
+
+    /// The counters, with the line's.
+    fn counters(&self, line: &IldCounters) -> SensorCounters {
+        SensorCounters {
             samples: self.samples.len() as u64,
             counter_gaps: self.unwrapper.missing(),
             resync_bytes: line.skipped_bytes,
             incomplete_cycles: line.incomplete_cycles,
-        };
-        (self.samples.clone(), counters)
+        }
     }
 }

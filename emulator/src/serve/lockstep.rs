@@ -110,14 +110,16 @@ pub async fn run(
                         watchdog.feed();
                     }
                 }
+                // The period's frames go out together: one write per link.
                 for send in answer.sends {
                     match send {
-                        NodeSend::Frame(frame) => links.fsm.send(&frame).await?,
+                        NodeSend::Frame(frame) => links.fsm.queue(&frame).await?,
                         NodeSend::Samples(samples) => {
                             links.sensor.emit(&samples, &mut links.fsm).await?;
                         }
                     }
                 }
+                links.fsm.flush().await?;
             }
             NodeReply::EndOfRun(ready) => return end_of_run(&ready, links).await,
         }

@@ -185,9 +185,10 @@ impl IldPort {
 }
 
 impl SensorPort {
-    /// Sends the samples of one period, in order. On the ILD line, first answers the command
-    /// lines that have arrived, then sends each sample's output cycle as the settings make it
-    /// (none while the output is off).
+    /// Sends the samples of one period, in order, with one write. On the ILD line, first
+    /// answers the command lines that have arrived, then sends each sample's output cycle as
+    /// the settings make it (none while the output is off). On CAN the Distance frames go out
+    /// with the frames queued on `fsm` before them.
     ///
     /// # Errors
     /// Link errors.
@@ -199,9 +200,10 @@ impl SensorPort {
                 for sample in samples {
                     if let Some(values) = port.settings.cycle(sample) {
                         port.clock.count(sample);
-                        port.link.send_cycle(&values).await?;
+                        port.link.queue_cycle(&values)?;
                     }
                 }
+                port.link.flush().await?;
             }
             SensorPort::Can(clock) => {
                 for sample in samples {
@@ -214,8 +216,9 @@ impl SensorPort {
                         counter,
                         sensor_time_us,
                     };
-                    fsm.send(&Message::Distance(distance).encode()?).await?;
+                    fsm.queue(&Message::Distance(distance).encode()?).await?;
                 }
+                fsm.flush().await?;
             }
         }
         Ok(())

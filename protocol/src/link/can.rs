@@ -168,9 +168,21 @@ impl CanLink {
     /// # Errors
     /// The transport's errors, naming the link.
     pub async fn send(&mut self, frame: &CanFrame) -> LinkResult<()> {
+        self.queue(frame).await?;
+        self.flush().await
+    }
+
+    /// Queues one frame behind those queued before, recording it now: SLCAN writes the queued
+    /// frames' lines with one `write` at [`CanLink::flush`] (or the next send or receive);
+    /// SocketCAN, one frame per `write`, sends it at once. A loop queues a period's frames and
+    /// flushes once. The rules are [`CanLink::send`]'s.
+    ///
+    /// # Errors
+    /// The transport's errors, naming the link.
+    pub async fn queue(&mut self, frame: &CanFrame) -> LinkResult<()> {
         let delivered = match &mut self.transport {
             Transport::SocketCan(port) => port.send(frame).await.map(|()| true)?,
-            Transport::Slcan(port) => port.send(frame).await?,
+            Transport::Slcan(port) => port.queue(frame)?,
         };
         if delivered {
             self.stats.frames_sent += 1;
@@ -179,11 +191,45 @@ impl CanLink {
         Ok(())
     }
 
+    /// Writes the frames queued so far.
+    ///
+    /// # Errors
+    /// The transport's errors, naming the link.
+    pub async fn flush(&mut self) -> LinkResult<()> {
+        match &mut self.transport {
+            Transport::SocketCan(_) => Ok(()),
+            Transport::Slcan(port) => port.flush().await,
+        }
+    }
+
+    /// Writes the capture's recorded lines now (the link does so itself before it waits for
+    /// a frame, see [`super::capture`]).
+    ///
+    /// # Errors
+    /// [`LinkError::Capture`] naming the link.
+    pub fn flush_capture(&mut self) -> LinkResult<()> {
+        match &mut self.capture {
+            Some(capture) => capture.flush().map_err(|source| LinkError::Capture {
+                link: self.name.clone(),
+                source,
+            }),
+            None => Ok(()),
+        }
+    }
+
     /// Waits for the next frame. Cancel-safe: a frame is never lost to a dropped future.
+    /// Before waiting, the capture writes what it holds.
     ///
     /// # Errors
     /// The transport's errors ([`LinkError::HangUp`] when the other end went away).
     pub async fn recv(&mut self) -> LinkResult<CanFrame> {
+        let must_wait = match &self.transport {
+            Transport::SocketCan(_) => true,
+            Transport::Slcan(port) => !port.has_ready(),
+        };
+        if must_wait {
+            self.flush_capture()?;
+        }
         let frame = match &mut self.transport {
             Transport::SocketCan(port) => port.recv().await?,
             Transport::Slcan(port) => port.recv().await?,

@@ -1,6 +1,13 @@
 //! Recording what crosses a link: CAN frames as candump `-L` lines (the protocol's
-//! [`LogEntry`] writer), ILD bytes raw. Lines are flushed one by one, so a run that stops on
-//! a fault or a link timeout loses nothing already recorded.
+//! [`LogEntry`] writer), ILD bytes raw.
+//!
+//! A capture collects what it records in memory and writes it with one `write` when flushed:
+//! the links flush their capture before they wait for input ([`CanLink`](super::CanLink),
+//! [`IldLink`](super::IldLink)), so in a loop the recording reaches the file once per period
+//! (not once per line or per piece of a line), and a process killed outright loses at most
+//! what it recorded since it last waited: the period in flight. What a capture holds is
+//! bounded: past [`CAPTURE_FLUSH_BYTES`] it writes on its own, and dropping it writes the
+//! rest (best effort; call `flush` to see the error).
 //!
 //! Timestamps come from a [`CaptureClock`]: the wall clock in real time, or a
 //! [`VirtualClock`] the loop sets to `k * Ta` every period in lockstep, so the same seed gives
@@ -13,6 +20,53 @@ use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use crate::can::CanFrame;
 use crate::candump::{LogEntry, Timestamp};
+
+/// A capture writes on its own once it holds this many bytes (a run that never waits for
+/// input, like the in-process loop, still streams its recording).
+pub const CAPTURE_FLUSH_BYTES: usize = 64 * 1024;
+
+/// Bytes recorded and not yet written, with the writer they go to.
+struct Pending {
+    out: Box<dyn Write + Send>,
+    bytes: Vec<u8>,
+}
+
+impl Pending {
+    fn new(out: impl Write + Send + 'static) -> Pending {
+        Pending {
+            out: Box::new(out),
+            bytes: Vec::with_capacity(CAPTURE_FLUSH_BYTES),
+        }
+    }
+
+    /// Writes on its own past [`CAPTURE_FLUSH_BYTES`].
+    fn recorded(&mut self) -> io::Result<()> {
+        if self.bytes.len() >= CAPTURE_FLUSH_BYTES {
+            self.flush()
+        } else {
+            Ok(())
+        }
+    }
+
+    /// Writes what is held with one `write_all` and flushes the writer; nothing when empty.
+    fn flush(&mut self) -> io::Result<()> {
+        if self.bytes.is_empty() {
+            return Ok(());
+        }
+        let written = self
+            .out
+            .write_all(&self.bytes)
+            .and_then(|()| self.out.flush());
+        self.bytes.clear();
+        written
+    }
+}
+
+impl Drop for Pending {
+    fn drop(&mut self) {
+        let _ = self.flush();
+    }
+}
 
 /// A clock the loop sets: the current virtual time, shared by cheap clones.
 #[derive(Debug, Clone, Default)]
@@ -58,7 +112,7 @@ impl CaptureClock {
 
 /// Records every CAN frame sent or received on a link as a candump `-L` line.
 pub struct CanCapture {
-    out: Box<dyn Write + Send>,
+    out: Pending,
     interface: String,
     clock: CaptureClock,
 }
@@ -77,23 +131,32 @@ impl CanCapture {
     /// on every transport (e.g. `fsm`) when recordings are to be compared.
     pub fn new(out: impl Write + Send + 'static, interface: &str, clock: CaptureClock) -> Self {
         CanCapture {
-            out: Box::new(out),
+            out: Pending::new(out),
             interface: interface.to_owned(),
             clock,
         }
     }
 
-    /// Appends one frame's line and flushes it.
+    /// Appends one frame's line (written at the next [`CanCapture::flush`], or once
+    /// [`CAPTURE_FLUSH_BYTES`] are held).
     ///
     /// # Errors
-    /// The writer's error.
+    /// The writer's error, when this record made the capture write.
     pub fn record(&mut self, frame: &CanFrame) -> io::Result<()> {
         let entry = LogEntry {
             timestamp: self.clock.timestamp(),
             interface: self.interface.clone(),
             frame: *frame,
         };
-        writeln!(self.out, "{entry}")?;
+        writeln!(self.out.bytes, "{entry}")?;
+        self.out.recorded()
+    }
+
+    /// Writes the lines recorded so far, with one `write`.
+    ///
+    /// # Errors
+    /// The writer's error.
+    pub fn flush(&mut self) -> io::Result<()> {
         self.out.flush()
     }
 }
@@ -101,8 +164,8 @@ impl CanCapture {
 /// Records the raw bytes of a byte link (the ILD stream): those received, and optionally
 /// those sent, each to its own writer, unchanged.
 pub struct ByteCapture {
-    received: Box<dyn Write + Send>,
-    sent: Option<Box<dyn Write + Send>>,
+    received: Pending,
+    sent: Option<Pending>,
 }
 
 impl std::fmt::Debug for ByteCapture {
@@ -117,7 +180,7 @@ impl ByteCapture {
     /// Records the bytes received to `received`.
     pub fn new(received: impl Write + Send + 'static) -> Self {
         ByteCapture {
-            received: Box::new(received),
+            received: Pending::new(received),
             sent: None,
         }
     }
@@ -125,30 +188,42 @@ impl ByteCapture {
     /// Also records the bytes sent, to `sent`.
     #[must_use]
     pub fn with_sent(mut self, sent: impl Write + Send + 'static) -> Self {
-        self.sent = Some(Box::new(sent));
+        self.sent = Some(Pending::new(sent));
         self
     }
 
-    /// Records bytes received.
+    /// Records bytes received (written at the next [`ByteCapture::flush`], or once
+    /// [`CAPTURE_FLUSH_BYTES`] are held).
     ///
     /// # Errors
-    /// The writer's error.
+    /// The writer's error, when this record made the capture write.
     pub fn record_received(&mut self, bytes: &[u8]) -> io::Result<()> {
-        self.received.write_all(bytes)?;
-        self.received.flush()
+        self.received.bytes.extend_from_slice(bytes);
+        self.received.recorded()
     }
 
-    /// Records bytes sent (if a writer for them was given).
+    /// Records bytes sent (if a writer for them was given), as
+    /// [`ByteCapture::record_received`].
     ///
     /// # Errors
-    /// The writer's error.
+    /// The writer's error, when this record made the capture write.
     pub fn record_sent(&mut self, bytes: &[u8]) -> io::Result<()> {
         match &mut self.sent {
             Some(out) => {
-                out.write_all(bytes)?;
-                out.flush()
+                out.bytes.extend_from_slice(bytes);
+                out.recorded()
             }
             None => Ok(()),
         }
+    }
+
+    /// Writes the bytes recorded so far, one `write` per writer.
+    ///
+    /// # Errors
+    /// The writers' error (both are flushed either way).
+    pub fn flush(&mut self) -> io::Result<()> {
+        let received = self.received.flush();
+        let sent = self.sent.as_mut().map_or(Ok(()), Pending::flush);
+        received.and(sent)
     }
 }

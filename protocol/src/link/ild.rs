@@ -337,7 +337,26 @@ impl IldLink {
     /// # Errors
     /// Line errors ([`LinkError::HangUp`] when the host went away).
     pub async fn send_cycle(&mut self, raws: &[u32]) -> LinkResult<()> {
-        self.send_bytes(&encode_cycle(raws)).await
+        self.queue_cycle(raws)?;
+        self.flush().await
+    }
+
+    /// Device: queues one output cycle behind what is pending, without writing:
+    /// [`IldLink::flush`] (or the next send or receive) writes them all at once.
+    ///
+    /// # Errors
+    /// [`LinkError::Capture`] when recording it failed.
+    pub fn queue_cycle(&mut self, raws: &[u32]) -> LinkResult<()> {
+        self.queue(&encode_cycle(raws))
+    }
+
+    /// Writes everything queued, waiting while the line's buffer is full: one `write` when
+    /// the line takes it all.
+    ///
+    /// # Errors
+    /// Line errors ([`LinkError::HangUp`] when the other end went away).
+    pub async fn flush(&mut self) -> LinkResult<()> {
+        self.line.flush_pending(&mut self.pending_tx).await
     }
 
     /// Device: waits for the next command line. Cancel-safe.
@@ -385,7 +404,7 @@ impl IldLink {
 
     async fn send_bytes(&mut self, bytes: &[u8]) -> LinkResult<()> {
         self.queue(bytes)?;
-        self.line.flush_pending(&mut self.pending_tx).await
+        self.flush().await
     }
 
     /// Queues `bytes` for sending (behind anything pending) and records them.
@@ -402,8 +421,10 @@ impl IldLink {
         Ok(())
     }
 
+    /// Writes what is pending and the capture, then waits for input and absorbs it.
     async fn fill(&mut self) -> LinkResult<()> {
         self.line.flush_pending(&mut self.pending_tx).await?;
+        self.flush_capture()?;
         let mut buf = [0; READ_CHUNK];
         let n = self.line.read(&mut buf).await?;
         self.absorb(&buf[..n])
@@ -416,6 +437,21 @@ impl IldLink {
             self.absorb(&buf[..n])?;
         }
         Ok(())
+    }
+
+    /// Writes the capture's recorded bytes now (the link does so itself before it waits for
+    /// input, see [`super::capture`]).
+    ///
+    /// # Errors
+    /// [`LinkError::Capture`] naming the link.
+    pub fn flush_capture(&mut self) -> LinkResult<()> {
+        match &mut self.capture {
+            Some(capture) => capture.flush().map_err(|source| LinkError::Capture {
+                link: self.line.name().to_owned(),
+                source,
+            }),
+            None => Ok(()),
+        }
     }
 
     fn absorb(&mut self, bytes: &[u8]) -> LinkResult<()> {

@@ -126,6 +126,12 @@ impl SerialLine {
             match guard.try_io(|inner| inner.get_ref().read(buf)) {
                 Ok(Ok(0)) => return Err(self.hang_up()),
                 Ok(Ok(n)) => {
+                    // A short read took all there was: the next read waits for the next
+                    // readiness event instead of trying once more for an EAGAIN (as tokio's
+                    // own sockets do).
+                    if n < buf.len() {
+                        guard.clear_ready();
+                    }
                     self.slave_keepalive = None;
                     return Ok(n);
                 }

@@ -27,7 +27,7 @@ pub mod uri;
 pub mod watchdog;
 
 pub use can::{CanLink, LinkStats, RecvError};
-pub use capture::{ByteCapture, CanCapture, CaptureClock, VirtualClock};
+pub use capture::{ByteCapture, CAPTURE_FLUSH_BYTES, CanCapture, CaptureClock, VirtualClock};
 pub use error::{LinkError, LinkResult};
 pub use ild::{IldCycle, IldCycleAssembler, IldLink, IldRequest};
 pub use line::SerialLine;

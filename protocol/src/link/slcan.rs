@@ -261,10 +261,21 @@ impl SlcanPort {
     /// # Errors
     /// [`LinkError::Protocol`] (host, channel closed), or a line error.
     pub async fn send(&mut self, frame: &CanFrame) -> LinkResult<bool> {
+        let delivered = self.queue(frame)?;
+        self.flush().await?;
+        Ok(delivered)
+    }
+
+    /// Queues one frame's line behind what is pending, without writing: [`SlcanPort::flush`]
+    /// (or the next send or receive) writes them all at once. Returns whether the frame will
+    /// go out; the rules are [`SlcanPort::send`]'s.
+    ///
+    /// # Errors
+    /// [`LinkError::Protocol`] (host, channel closed).
+    pub fn queue(&mut self, frame: &CanFrame) -> LinkResult<bool> {
         if !self.channel_open {
             if self.role == Role::Device {
                 self.counters.dropped_while_closed += 1;
-                self.line.flush_pending(&mut self.pending_tx).await?;
                 return Ok(false);
             }
             return Err(LinkError::Protocol {
@@ -274,8 +285,22 @@ impl SlcanPort {
         }
         self.pending_tx
             .extend_from_slice(encode_frame(frame).as_bytes());
-        self.line.flush_pending(&mut self.pending_tx).await?;
         Ok(true)
+    }
+
+    /// Writes every queued line, waiting while the line's buffer is full: one `write` when
+    /// the line takes them all.
+    ///
+    /// # Errors
+    /// A line error.
+    pub async fn flush(&mut self) -> LinkResult<()> {
+        self.line.flush_pending(&mut self.pending_tx).await
+    }
+
+    /// Whether a frame (or a pending refusal) is there for the next receive without reading.
+    #[must_use]
+    pub fn has_ready(&self) -> bool {
+        !self.frames.is_empty() || self.pending_error.is_some()
     }
 
     /// Waits for the next frame. Cancel-safe.

@@ -7,21 +7,28 @@ use std::time::{Duration, Instant};
 
 use scanhil_protocol::link::CanLink;
 
-/// A writer whose bytes the test reads back: clones share one buffer, so a capture can own
-/// one clone while the test keeps another.
+/// A writer whose bytes (and `write` calls) the test reads back: clones share one buffer, so
+/// a capture can own one clone while the test keeps another.
 #[derive(Clone, Default)]
-pub struct SharedBuffer(Arc<Mutex<Vec<u8>>>);
+pub struct SharedBuffer(Arc<Mutex<(Vec<u8>, usize)>>);
 
 impl SharedBuffer {
     /// Everything written so far.
     pub fn bytes(&self) -> Vec<u8> {
-        self.0.lock().unwrap().clone()
+        self.0.lock().unwrap().0.clone()
+    }
+
+    /// How many `write` calls it took.
+    pub fn writes(&self) -> usize {
+        self.0.lock().unwrap().1
     }
 }
 
 impl Write for SharedBuffer {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
-        self.0.lock().unwrap().extend_from_slice(buf);
+        let mut shared = self.0.lock().unwrap();
+        shared.0.extend_from_slice(buf);
+        shared.1 += 1;
         Ok(buf.len())
     }
     fn flush(&mut self) -> io::Result<()> {
