@@ -5,7 +5,8 @@
 //! the next one (reordered), the frame some periods later (delayed), or the frame with one bit
 //! flipped. Faults come at a rate (a seeded generator rolls for every frame: the same seed
 //! gives the same faults) or at listed periods. The two-process scan and the in-process loop
-//! both run it, and every frame is accounted for ([`FrameLedger`]).
+//! both run it, and every frame is accounted for ([`FrameLedger`]). [`SensorFaults`] declares
+//! the sensor losing its peak; the emulator's sensor applies it.
 
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -144,6 +145,98 @@ impl DirectionFaults {
                     format!("at[{index}].message"),
                     format!("`{name}` is not a message of the set (its DBC name, such as `Step`)"),
                 );
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A stretch of loop time, s: `from_s <= t < to_s`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TimeWindow {
+    /// Start, s of loop time.
+    pub from_s: f64,
+    /// End (excluded), s of loop time.
+    pub to_s: f64,
+}
+
+impl TimeWindow {
+    /// Whether `t_s` is inside.
+    #[must_use]
+    pub fn contains(&self, t_s: f64) -> bool {
+        self.from_s <= t_s && t_s < self.to_s
+    }
+}
+
+/// Bursts of occlusion at random instants: the spot is shaded, no peak.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OcclusionBursts {
+    /// Mean bursts per second of loop time (a burst starts at a sample with probability
+    /// `bursts_per_s / measuring rate`).
+    pub bursts_per_s: f64,
+    /// How long each burst lasts, s.
+    pub burst_s: f64,
+}
+
+/// The sensor losing its peak, reported as the ILD does (error values in place of distances):
+/// the laser off (`laser_off`), the target beyond the range (`peak_after_range`), bursts of
+/// occlusion (`no_peak`).
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SensorFaults {
+    /// Windows with the laser off.
+    pub laser_off: Vec<TimeWindow>,
+    /// Windows with the target beyond the measuring range.
+    pub out_of_range: Vec<TimeWindow>,
+    /// Random bursts of occlusion.
+    pub occlusion: Option<OcclusionBursts>,
+}
+
+impl SensorFaults {
+    /// Whether any fault is declared.
+    #[must_use]
+    pub fn is_active(&self) -> bool {
+        !self.laser_off.is_empty() || !self.out_of_range.is_empty() || self.occlusion.is_some()
+    }
+
+    /// Checks every field.
+    ///
+    /// # Errors
+    /// [`FaultConfigError`] naming the field: a window that is not finite or ends before it
+    /// starts, a burst rate or length that is negative or not finite.
+    pub fn check(&self) -> Result<(), FaultConfigError> {
+        for (name, windows) in [
+            ("laser_off", &self.laser_off),
+            ("out_of_range", &self.out_of_range),
+        ] {
+            for (index, window) in windows.iter().enumerate() {
+                if !(window.from_s.is_finite()
+                    && window.to_s.is_finite()
+                    && window.from_s < window.to_s)
+                {
+                    return Err(FaultConfigError {
+                        field: format!("{name}[{index}]"),
+                        reason: format!(
+                            "from_s {} s to to_s {} s must be finite and end after it starts",
+                            window.from_s, window.to_s
+                        ),
+                    });
+                }
+            }
+        }
+        if let Some(bursts) = self.occlusion {
+            for (field, value) in [
+                ("occlusion.bursts_per_s", bursts.bursts_per_s),
+                ("occlusion.burst_s", bursts.burst_s),
+            ] {
+                if !(value.is_finite() && value > 0.0) {
+                    return Err(FaultConfigError {
+                        field: field.into(),
+                        reason: format!("{value} must be positive and finite"),
+                    });
+                }
             }
         }
         Ok(())

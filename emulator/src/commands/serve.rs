@@ -4,6 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
+use scanhil_protocol::fault_injection::SensorFaults;
 
 use scanhil_emulator::serve::{DEFAULT_HEARTBEAT_HZ, ServeConfig, ServeOutcome, TimingMode};
 
@@ -40,6 +41,17 @@ pub struct Args {
     /// Status/heartbeat frames per second (of loop time).
     #[arg(long, default_value_t = DEFAULT_HEARTBEAT_HZ)]
     heartbeat_hz: f64,
+    /// The sensor losing its peak, as a scenario's `faults.sensor` JSON (laser off, out of
+    /// range, occlusion bursts); the samples carry the ILD's error values.
+    #[arg(long, value_parser = parse_sensor_faults)]
+    sensor_faults: Option<SensorFaults>,
+}
+
+/// Parses and checks `--sensor-faults` (the field named in the error).
+fn parse_sensor_faults(text: &str) -> Result<SensorFaults, String> {
+    let faults: SensorFaults = serde_json::from_str(text).map_err(|error| error.to_string())?;
+    faults.check().map_err(|error| error.to_string())?;
+    Ok(faults)
 }
 
 /// Runs the node(s) until the controller closes the link, the watchdog fires or the duration
@@ -59,6 +71,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         lockstep_answer_allowance_s: args.lockstep_answer_allowance_s,
         duration_s: args.duration_s,
         heartbeat_hz: args.heartbeat_hz,
+        sensor_faults: args.sensor_faults,
     };
     let outcome = scanhil_emulator::serve::serve(&config).context("serve")?;
     Ok(match outcome {

@@ -8,6 +8,7 @@ use scanhil_protocol::message::{FaultKind, NodeState};
 use scanhil_protocol::plant_units::ActuatorPair;
 
 use crate::plant::{Plant, PlantError, PlantEvent, PlantStep};
+use crate::sensor_faults::{SensorFaultCounts, SensorFaultModel};
 
 /// What the node wants sent after an input.
 #[derive(Debug, Clone, PartialEq)]
@@ -26,8 +27,13 @@ pub struct NodeCounters {
     pub periods: u64,
     /// Coil commands received.
     pub commands: u64,
-    /// Coil commands whose sequence counter skipped values.
+    /// Coil commands whose sequence counter skipped values (or went back).
     pub command_gaps: u64,
+    /// Coil commands with the sequence counter of the one before (a duplicate).
+    pub repeated_commands: u64,
+    /// Step frames for the period just stepped (a duplicate, or the host asking again for a
+    /// reading it did not get): answered with the same reading, the plant not stepped.
+    pub repeated_steps: u64,
     /// Periods stepped without a fresh command for them (real time: the controller was late).
     pub stale_periods: u64,
     /// Step frames whose period counter was not the node's next period.
@@ -50,6 +56,7 @@ pub struct MirrorNode {
     /// period it lasts.
     active_faults: Vec<FaultKind>,
     counters: NodeCounters,
+    sensor_faults: Option<SensorFaultModel>,
 }
 
 impl MirrorNode {
@@ -64,7 +71,26 @@ impl MirrorNode {
             last_command_seq: None,
             active_faults: Vec::new(),
             counters: NodeCounters::default(),
+            sensor_faults: None,
         }
+    }
+
+    /// The same node, its sensor losing its peak as `faults` says.
+    #[must_use]
+    pub fn with_sensor_faults(mut self, faults: SensorFaultModel) -> MirrorNode {
+        self.sensor_faults = Some(faults);
+        self
+    }
+
+    /// How many sensor samples each declared sensor fault replaced (`None`: none declared).
+    #[must_use]
+    pub fn sensor_fault_counts(&self) -> Option<SensorFaultCounts> {
+        self.sensor_faults.as_ref().map(SensorFaultModel::counts)
+    }
+
+    /// Counts a Step frame for the period just stepped (answered again, not stepped).
+    pub fn on_repeated_step(&mut self) {
+        self.counters.repeated_steps += 1;
     }
 
     /// The node's state.
@@ -116,11 +142,10 @@ impl MirrorNode {
     /// A coil current command with its 16-bit sequence counter. Non-finite currents are
     /// refused by the plant at the next step; here they are held like any other command.
     pub fn on_command(&mut self, seq: u16, currents_a: ActuatorPair) {
-        if self
-            .last_command_seq
-            .is_some_and(|last| seq != last.wrapping_add(1))
-        {
-            self.counters.command_gaps += 1;
+        match self.last_command_seq {
+            Some(last) if seq == last => self.counters.repeated_commands += 1,
+            Some(last) if seq != last.wrapping_add(1) => self.counters.command_gaps += 1,
+            _ => {}
         }
         self.last_command_seq = Some(seq);
         self.counters.commands += 1;
@@ -149,7 +174,12 @@ impl MirrorNode {
         } else {
             self.command_a
         };
-        let step = self.plant.step(command)?;
+        let mut step = self.plant.step(command)?;
+        if let Some(faults) = &mut self.sensor_faults {
+            step.sensor_samples
+                .iter_mut()
+                .for_each(|sample| faults.apply(sample));
+        }
         self.counters.periods += 1;
         let mut faults: Vec<(FaultKind, i32)> = Vec::new();
         for event in &step.events {
