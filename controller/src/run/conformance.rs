@@ -132,10 +132,12 @@ pub async fn run_checks(
     results.push(CheckResult {
         name: "angle_sequence_gapless",
         node: "fsm",
-        passed: counters.angle_sequence_gaps == 0 && counters.angle_readings >= k,
+        passed: counters.angle_sequence_gaps + counters.late_readings == 0
+            && counters.angle_readings >= k,
         detail: format!(
             "{} readings, {} out of sequence",
-            counters.angle_readings, counters.angle_sequence_gaps
+            counters.angle_readings,
+            counters.angle_sequence_gaps + counters.late_readings
         ),
         time_s: 0.0,
     });

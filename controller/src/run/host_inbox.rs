@@ -30,8 +30,11 @@ pub struct NodeEvent {
 pub struct MirrorLinkCounters {
     /// Angle readings received.
     pub angle_readings: u64,
-    /// Angle readings whose sequence counter was not the one waited for (skipped or stale).
+    /// Angle readings ahead of the one waited for (sequence counter skipped values, mod 2^16).
     pub angle_sequence_gaps: u64,
+    /// Angle readings of an earlier period than the one waited for (a duplicate, a delayed or
+    /// reordered frame, an answer to a repeated Step): counted, not used.
+    pub late_readings: u64,
     /// Frames with a loop id and a malformed payload.
     pub malformed_frames: u64,
     /// Frames with ids that are not loop messages (other traffic).
@@ -134,13 +137,15 @@ impl HostInbox {
     }
 
     /// Counts an angle reading with sequence counter `seq` taken while period `expected` was
-    /// awaited; returns how far ahead of it the reading is (mod 2^16; 0: the one awaited,
-    /// anything else is counted as a sequence gap).
+    /// awaited; returns how far ahead of it the reading is (mod 2^16; 0: the one awaited;
+    /// up to 2^15 - 1 ahead is counted as a sequence gap, further as a late reading).
     pub fn count_reading(&mut self, seq: u16, expected: u64) -> u16 {
         self.counters.angle_readings += 1;
         let offset = seq.wrapping_sub(expected as u16);
-        if offset != 0 {
-            self.counters.angle_sequence_gaps += 1;
+        match offset {
+            0 => {}
+            ahead if ahead < 0x8000 => self.counters.angle_sequence_gaps += 1,
+            _ => self.counters.late_readings += 1,
         }
         offset
     }

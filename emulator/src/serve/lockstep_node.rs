@@ -117,7 +117,8 @@ impl<'a> LockstepNode<'a> {
     /// angle reading, the sensor's samples, a fault frame for each fault that started, and a
     /// Status frame on heartbeat periods. A Step for the period just stepped (a duplicate, or
     /// the host asking again for a reading it did not get) is answered with the same angle
-    /// reading alone, the plant not stepped, and counted.
+    /// reading alone, the plant not stepped, and counted; a Step for any other period than the
+    /// next is counted and not answered.
     ///
     /// # Errors
     /// As [`Self::on_frame`].
@@ -128,8 +129,11 @@ impl<'a> LockstepNode<'a> {
             self.node.on_repeated_step();
             return Ok(vec![NodeSend::Frame(reading)]);
         }
+        if !self.node.check_step_counter(step) {
+            // A stale or corrupted Step: stepping on it would shift every later period.
+            return Ok(Vec::new());
+        }
         let k = self.node.next_period();
-        self.node.check_step_counter(step);
         let mut sends = Vec::new();
         for output in self.node.step()? {
             match output {

@@ -1,0 +1,277 @@
+//! Injected faults in the one-process loop, one test per row of the table in `docs/faults.md`:
+//! what the host detects, what the node detects, within how many periods, what the coils end
+//! at and what `report.json` says. Every run also checks that every frame is accounted for:
+//! the transport's own counts of what each side sent and received agree with the fault
+//! injector's ledger.
+
+use std::path::{Path, PathBuf};
+
+use scanhil_controller::run::link_faults::FaultsConfig;
+use scanhil_controller::run::scenario::Scenario;
+use scanhil_lab::in_process::{InProcessOutcome, run};
+use serde_json::Value;
+
+fn scenarios_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenarios")
+}
+
+/// The small loop (2000 periods, no optics) with `faults` (the scenario's `faults` JSON).
+fn small_loop(faults: Value) -> Scenario {
+    let mut scenario = Scenario::load(&scenarios_dir().join("test-loop-small.json")).unwrap();
+    scenario.faults = serde_json::from_value::<FaultsConfig>(faults).unwrap();
+    scenario.check().unwrap();
+    scenario
+}
+
+/// Runs `scenario` in process into a temporary folder; returns the outcome and the report's
+/// `faults` section, after checking every frame is accounted for.
+fn run_faulty(scenario: &Scenario) -> (InProcessOutcome, Value) {
+    let dir = tempfile::tempdir().unwrap();
+    let outcome = run(scenario, Some(dir.path())).unwrap();
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("report.json")).unwrap())
+            .unwrap();
+    let faults = report["faults"].clone();
+    let wire = outcome.wire;
+    let ledger = |direction: &str, field: &str| {
+        faults["injected"]["frames"][direction]["ledger"][field]
+            .as_u64()
+            .unwrap_or_else(|| panic!("{direction}.{field} in {faults:#}"))
+    };
+    assert_eq!(wire.host_sent, ledger("host_to_node", "offered"));
+    assert_eq!(wire.node_received, ledger("host_to_node", "delivered"));
+    assert_eq!(wire.node_sent, ledger("node_to_host", "offered"));
+    assert_eq!(wire.host_received, ledger("node_to_host", "delivered"));
+    for direction in ["host_to_node", "node_to_host"] {
+        assert_eq!(
+            faults["injected"]["frames"][direction]["balances"], true,
+            "{faults:#}"
+        );
+    }
+    (outcome, faults)
+}
+
+fn at(direction: &str, period: u64, fault: &str, message: &str) -> Value {
+    serde_json::json!({
+        direction: { "at": [{ "period": period, "fault": fault, "message": message }] }
+    })
+}
+
+fn host(faults: &Value, field: &str) -> u64 {
+    faults["host_detected"][field].as_u64().unwrap()
+}
+
+fn node(faults: &Value, field: &str) -> u64 {
+    faults["node_detected"][field].as_u64().unwrap()
+}
+
+/// The run completed every period and the node holds the last command (not a fault's zero).
+fn completed(outcome: &InProcessOutcome, faults: &Value) {
+    let record = &outcome.run.record;
+    assert_eq!(record.periods_done, record.periods_planned, "{faults:#}");
+    assert!(record.stopped_by.is_none(), "{:?}", record.stopped_by);
+    assert_eq!(faults["host_detected"]["stopped_by"], Value::Null);
+    assert_eq!(faults["node_detected"]["final_state"], "running");
+}
+
+fn injected_one(faults: &Value, direction: &str, fault: &str, period: u64) {
+    let first = &faults["injected"]["frames"][direction]["first_faults"];
+    assert_eq!(first.as_array().unwrap().len(), 1, "{first:#}");
+    assert_eq!(first[0]["fault"], fault);
+    assert_eq!(first[0]["period"], period);
+}
+
+#[test]
+fn a_dropped_angle_reading_is_asked_for_again_with_its_step() {
+    let (outcome, faults) =
+        run_faulty(&small_loop(at("node_to_host", 500, "drop", "AngleReading")));
+    completed(&outcome, &faults);
+    injected_one(&faults, "node_to_host", "drop", 500);
+    assert_eq!(host(&faults, "repeated_steps"), 1);
+    assert_eq!(node(&faults, "repeated_steps"), 1);
+    assert_eq!(node(&faults, "out_of_order_steps"), 0);
+    assert_eq!(host(&faults, "late_readings"), 0);
+}
+
+#[test]
+fn a_dropped_step_is_sent_again_and_stepped_once() {
+    let (outcome, faults) = run_faulty(&small_loop(at("host_to_node", 500, "drop", "Step")));
+    completed(&outcome, &faults);
+    injected_one(&faults, "host_to_node", "drop", 500);
+    assert_eq!(host(&faults, "repeated_steps"), 1);
+    // The node never saw the first Step: the repeat is its only Step(500).
+    assert_eq!(node(&faults, "repeated_steps"), 0);
+    assert_eq!(outcome.run.record.periods_done, 2000);
+}
+
+#[test]
+fn a_dropped_coil_command_leaves_the_node_one_stale_period() {
+    let (outcome, faults) = run_faulty(&small_loop(at("host_to_node", 500, "drop", "CoilCommand")));
+    completed(&outcome, &faults);
+    assert_eq!(node(&faults, "command_gaps"), 1);
+    // Period 0 steps before any command as well.
+    let clean = run_faulty(&small_loop(
+        serde_json::json!({"node_to_host": {"at": [{"period": 5000, "fault": "drop"}]}}),
+    ))
+    .1;
+    assert_eq!(
+        node(&faults, "stale_periods"),
+        node(&clean, "stale_periods") + 1
+    );
+    assert_eq!(host(&faults, "repeated_steps"), 0);
+}
+
+#[test]
+fn a_duplicated_reading_is_counted_late_and_not_used() {
+    let (outcome, faults) = run_faulty(&small_loop(at(
+        "node_to_host",
+        500,
+        "duplicate",
+        "AngleReading",
+    )));
+    completed(&outcome, &faults);
+    assert_eq!(host(&faults, "late_readings"), 1);
+    assert_eq!(host(&faults, "angle_sequence_gaps"), 0);
+}
+
+#[test]
+fn a_duplicated_step_is_answered_again_without_stepping() {
+    let (outcome, faults) = run_faulty(&small_loop(at("host_to_node", 500, "duplicate", "Step")));
+    completed(&outcome, &faults);
+    assert_eq!(node(&faults, "repeated_steps"), 1);
+    assert_eq!(host(&faults, "late_readings"), 1);
+    let summary = &outcome.run.emulator_summary.as_ref().unwrap()["summary"];
+    assert_eq!(summary["node"]["periods"], 2000, "stepped once per period");
+}
+
+#[test]
+fn a_duplicated_coil_command_is_counted_as_a_repeat() {
+    let (outcome, faults) = run_faulty(&small_loop(at(
+        "host_to_node",
+        500,
+        "duplicate",
+        "CoilCommand",
+    )));
+    completed(&outcome, &faults);
+    assert_eq!(node(&faults, "repeated_commands"), 1);
+    assert_eq!(node(&faults, "command_gaps"), 0);
+}
+
+#[test]
+fn a_delayed_reading_is_replaced_by_the_repeat_and_counted_late_when_it_comes() {
+    let mut faults = at("node_to_host", 500, "delay", "AngleReading");
+    faults["node_to_host"]["delay_periods"] = 3.into();
+    let (outcome, faults) = run_faulty(&small_loop(faults));
+    completed(&outcome, &faults);
+    assert_eq!(host(&faults, "repeated_steps"), 1);
+    assert_eq!(node(&faults, "repeated_steps"), 1);
+    assert_eq!(host(&faults, "late_readings"), 1);
+}
+
+#[test]
+fn a_delayed_step_is_not_stepped_when_it_comes() {
+    let mut faults = at("host_to_node", 500, "delay", "Step");
+    faults["host_to_node"]["delay_periods"] = 3.into();
+    let (outcome, faults) = run_faulty(&small_loop(faults));
+    completed(&outcome, &faults);
+    assert_eq!(host(&faults, "repeated_steps"), 1);
+    assert_eq!(node(&faults, "out_of_order_steps"), 1);
+    let summary = &outcome.run.emulator_summary.as_ref().unwrap()["summary"];
+    assert_eq!(summary["node"]["periods"], 2000, "stepped once per period");
+}
+
+#[test]
+fn a_delayed_coil_command_is_not_applied_when_it_comes() {
+    let mut faults = at("host_to_node", 500, "delay", "CoilCommand");
+    faults["host_to_node"]["delay_periods"] = 2.into();
+    let (outcome, faults) = run_faulty(&small_loop(faults));
+    completed(&outcome, &faults);
+    assert_eq!(node(&faults, "late_commands"), 1);
+    assert_eq!(node(&faults, "command_gaps"), 1);
+}
+
+#[test]
+fn a_coil_command_reordered_behind_its_step_leaves_a_stale_period_and_comes_late() {
+    let (outcome, faults) = run_faulty(&small_loop(at(
+        "host_to_node",
+        500,
+        "reorder",
+        "CoilCommand",
+    )));
+    completed(&outcome, &faults);
+    let clean = run_faulty(&small_loop(
+        serde_json::json!({"node_to_host": {"at": [{"period": 5000, "fault": "drop"}]}}),
+    ))
+    .1;
+    assert_eq!(
+        node(&faults, "stale_periods"),
+        node(&clean, "stale_periods") + 1
+    );
+    assert_eq!(node(&faults, "command_gaps"), 0);
+}
+
+#[test]
+fn a_reordered_reading_is_asked_for_again_and_the_held_one_counted_late() {
+    let (outcome, faults) = run_faulty(&small_loop(at(
+        "node_to_host",
+        500,
+        "reorder",
+        "AngleReading",
+    )));
+    completed(&outcome, &faults);
+    // Nothing else comes in period 500: the reading waits for the repeat's answer.
+    assert_eq!(host(&faults, "repeated_steps"), 1);
+    assert_eq!(host(&faults, "late_readings"), 1);
+}
+
+#[test]
+fn bit_flips_in_readings_are_caught_when_they_hit_the_sequence_counter() {
+    let at: Vec<Value> = (100..400)
+        .map(|period| serde_json::json!({"period": period, "fault": "bit_flip", "message": "AngleReading"}))
+        .collect();
+    let (outcome, faults) = run_faulty(&small_loop(
+        serde_json::json!({"seed": 17, "node_to_host": {"at": at}}),
+    ));
+    completed(&outcome, &faults);
+    let flips = faults["injected"]["frames"]["node_to_host"]["first_faults"]
+        .as_array()
+        .unwrap();
+    assert_eq!(flips.len(), 256, "the log keeps the first 256");
+    let ledger = &faults["injected"]["frames"]["node_to_host"]["ledger"];
+    assert_eq!(ledger["bit_flipped"], 300);
+    // AngleReading: Seq in bits 0-15, then the angles. The log holds 256 of the 300: count
+    // the counter hits of those and bound the rest.
+    let counter_hits = flips
+        .iter()
+        .filter(|flip| flip["bit"].as_u64().unwrap() < 16)
+        .count() as u64;
+    let caught = host(&faults, "angle_sequence_gaps") + host(&faults, "late_readings");
+    assert!(counter_hits > 0);
+    assert!(
+        (counter_hits..=counter_hits + 44).contains(&caught),
+        "{counter_hits} counter hits logged, {caught} caught"
+    );
+    assert_eq!(
+        host(&faults, "repeated_steps"),
+        caught,
+        "each caught one is asked for again"
+    );
+}
+
+#[test]
+fn a_node_that_goes_silent_ends_the_run_by_the_watchdog_with_zero_current() {
+    // Every frame from the node is lost: the first reading never comes.
+    let scenario = small_loop(serde_json::json!({"node_to_host": {"drop_rate": 1.0}}));
+    let (outcome, faults) = run_faulty(&scenario);
+    assert_eq!(outcome.run.record.periods_done, 0, "{faults:#}");
+    let watchdog = u64::from(scenario.timing.watchdog_periods);
+    assert_eq!(host(&faults, "repeated_steps"), watchdog - 1);
+    assert_eq!(node(&faults, "repeated_steps"), watchdog - 1);
+    let stopped_by = faults["host_detected"]["stopped_by"].as_str().unwrap();
+    assert!(stopped_by.contains("link timeout"), "{stopped_by}");
+    assert_eq!(faults["host_detected"]["stopped_in_period"], 0);
+    // The host's zero command reached the node.
+    let held = &faults["node_detected"]["held_coil_currents_a"];
+    assert_eq!(held["a"], 0.0, "{held}");
+    assert_eq!(held["b"], 0.0, "{held}");
+}
