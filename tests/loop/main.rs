@@ -27,3 +27,5 @@ mod rig_alone;
 mod interrupted;
 // The output folder: one scan at a time, no stale files after a re-scan.
 mod out_folder;
+// Faults declared in a scenario over ptys: injected, detected, reported, nothing lost.
+mod faults;
