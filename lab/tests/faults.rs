@@ -275,3 +275,70 @@ fn a_node_that_goes_silent_ends_the_run_by_the_watchdog_with_zero_current() {
     assert_eq!(held["a"], 0.0, "{held}");
     assert_eq!(held["b"], 0.0, "{held}");
 }
+
+#[test]
+fn the_sensor_losing_its_peak_is_sent_and_seen_as_the_ild_error_values() {
+    let mut scenario = Scenario::load(&scenarios_dir().join("test-duplo-stud.json")).unwrap();
+    scenario.lead_in = scanhil_controller::run::lead_in::LeadIn::Fixed { duration_s: 0.01 };
+    scenario.duration_s = 0.05;
+    scenario.faults = serde_json::from_value::<FaultsConfig>(serde_json::json!({"sensor": {
+        "laser_off": [{"from_s": 0.01, "to_s": 0.015}],
+        "out_of_range": [{"from_s": 0.03, "to_s": 0.032}],
+        "occlusion": {"bursts_per_s": 200.0, "burst_s": 0.0005}
+    }}))
+    .unwrap();
+    scenario.check().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let outcome = run(&scenario, Some(dir.path())).unwrap();
+    let report: Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.path().join("report.json")).unwrap())
+            .unwrap();
+    let faults = &report["faults"];
+    completed(&outcome, faults);
+    let injected = &faults["injected"]["sensor_samples"];
+    let seen = &faults["host_detected"]["sensor_error_values"];
+    // 5 ms and 2 ms at 20 kHz.
+    assert_eq!(injected["laser_off"], 100, "{injected}");
+    assert_eq!(injected["out_of_range"], 40, "{injected}");
+    assert_eq!(seen["laser_off"], 100, "{seen}");
+    assert!(
+        seen["peak_after_range"].as_u64().unwrap_or(0) >= 40,
+        "{seen}"
+    );
+    let occluded = injected["occluded"].as_u64().unwrap();
+    assert!(occluded > 0, "{injected}");
+    assert!(seen["no_peak"].as_u64().unwrap() >= occluded, "{seen}");
+    // The same run without the faults: the errors added are exactly the ones injected, and
+    // no error value became a point.
+    let mut clean = scenario.clone();
+    clean.faults = FaultsConfig::default();
+    let clean = run(&clean, None).unwrap();
+    let errors = |samples: &[scanhil_controller::run::sensor_link::CountedSample]| {
+        samples
+            .iter()
+            .filter(|s| matches!(s.value, scanhil_protocol::ild::IldValue::Error(_)))
+            .count() as u64
+    };
+    let (faulty_samples, clean_samples) = (&outcome.run.sensor.0, &clean.run.sensor.0);
+    assert_eq!(faulty_samples.len(), clean_samples.len());
+    let is_error = |value: &scanhil_protocol::ild::IldValue| {
+        matches!(value, scanhil_protocol::ild::IldValue::Error(_))
+    };
+    let changed: Vec<_> = faulty_samples
+        .iter()
+        .zip(clean_samples)
+        .filter(|(faulty, clean)| faulty.value != clean.value)
+        .collect();
+    let injected_total = 100 + 40 + occluded;
+    assert!(
+        changed.len() as u64 <= injected_total,
+        "{} changed, {injected_total} injected",
+        changed.len()
+    );
+    assert!(changed.len() as u64 >= 140, "the windows' samples changed");
+    assert!(
+        changed.iter().all(|(faulty, _)| is_error(&faulty.value)),
+        "every changed sample is an error value"
+    );
+    assert!(errors(faulty_samples) > errors(clean_samples));
+}
