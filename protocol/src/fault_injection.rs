@@ -331,7 +331,9 @@ impl FrameInjector {
     pub fn send(&mut self, frame: CanFrame, period: u64, out: &mut Vec<CanFrame>) {
         self.ledger.offered += 1;
         self.release_due(period, out);
-        match self.fault_for(&frame, period) {
+        let fault = self.fault_for(&frame, period);
+        let mut bit = None;
+        match fault {
             None => self.deliver(frame, out),
             Some(FrameFault::Drop) => self.ledger.dropped += 1,
             Some(FrameFault::Delay) => {
@@ -353,12 +355,20 @@ impl FrameInjector {
             }
             Some(FrameFault::BitFlip) => {
                 self.ledger.bit_flipped += 1;
-                let (flipped, bit) = self.flip_bit(&frame);
-                if let Some(last) = self.log.last_mut() {
-                    last.bit = Some(bit);
-                }
+                let (flipped, flipped_bit) = self.flip_bit(&frame);
+                bit = Some(flipped_bit);
                 self.deliver(flipped, out);
             }
+        }
+        if let Some(fault) = fault
+            && self.log.len() < MAX_LOGGED_FAULTS
+        {
+            self.log.push(InjectedFault {
+                period,
+                fault,
+                message: message_name(&frame),
+                bit,
+            });
         }
         self.ledger.held = self.held();
     }
@@ -412,7 +422,7 @@ impl FrameInjector {
         out.push(frame);
     }
 
-    /// The fault this frame suffers (listed faults first), logged.
+    /// The fault this frame suffers (listed faults first).
     fn fault_for(&mut self, frame: &CanFrame, period: u64) -> Option<FrameFault> {
         let raw_id = frame.id().as_raw();
         let listed = self.pending_at.iter().position(|at| {
@@ -422,7 +432,7 @@ impl FrameInjector {
                     .as_deref()
                     .is_none_or(|name| message_id(name).map(u32::from) == Some(raw_id))
         });
-        let fault = match listed {
+        match listed {
             Some(index) => Some(self.pending_at.swap_remove(index).fault),
             None if self.faults.total_rate() > 0.0 => {
                 let roll: f64 = self.rng.random();
@@ -436,16 +446,7 @@ impl FrameInjector {
                     })
             }
             None => None,
-        }?;
-        if self.log.len() < MAX_LOGGED_FAULTS {
-            self.log.push(InjectedFault {
-                period,
-                fault,
-                message: message_name(frame),
-                bit: None,
-            });
         }
-        Some(fault)
     }
 
     /// `frame` with one bit inverted (of its payload, or of its id without one), and which.
@@ -593,6 +594,27 @@ mod tests {
         }
         assert_eq!(injector.ledger().bit_flipped, 50);
         assert!(injector.log().iter().all(|fault| fault.bit.is_some()));
+        // Past the log's length (filled by listed drops) no bit is written into an older
+        // entry.
+        let faults = DirectionFaults {
+            bit_flip_rate: 1.0,
+            at: (0..MAX_LOGGED_FAULTS as u64)
+                .map(|period| FaultAt {
+                    period,
+                    fault: FrameFault::Drop,
+                    message: None,
+                })
+                .collect(),
+            ..DirectionFaults::default()
+        };
+        let (_, injector) = run(faults, 4, 300);
+        assert_eq!(injector.log().len(), MAX_LOGGED_FAULTS);
+        assert!(
+            injector
+                .log()
+                .iter()
+                .all(|fault| (fault.fault == FrameFault::BitFlip) == fault.bit.is_some())
+        );
     }
 
     #[test]
