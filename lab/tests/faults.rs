@@ -225,7 +225,7 @@ fn a_reordered_reading_is_asked_for_again_and_the_held_one_counted_late() {
 }
 
 #[test]
-fn bit_flips_in_readings_are_caught_when_they_hit_the_sequence_counter() {
+fn bit_flips_in_readings_are_caught_when_they_hit_the_counter_or_a_high_angle_bit() {
     let at: Vec<Value> = (100..400)
         .map(|period| serde_json::json!({"period": period, "fault": "bit_flip", "message": "AngleReading"}))
         .collect();
@@ -239,21 +239,35 @@ fn bit_flips_in_readings_are_caught_when_they_hit_the_sequence_counter() {
     assert_eq!(flips.len(), 256, "the log keeps the first 256");
     let ledger = &faults["injected"]["frames"]["node_to_host"]["ledger"];
     assert_eq!(ledger["bit_flipped"], 300);
-    // AngleReading: Seq in bits 0-15, then the angles. The log holds 256 of the 300: count
-    // the counter hits of those and bound the rest.
-    let counter_hits = flips
+    // AngleReading: Seq in payload bits 0-15, Alpha 16-39, Beta 40-63 (24-bit, 1 urad per
+    // count). A counter bit gives a gap or a late reading; an angle bit of weight 2^16
+    // counts or more (field bits 16-23, payload bits 32-39 and 56-63) an angle beyond the
+    // mirror's 31.4 mrad with margin; field bit 15 mostly does; lower angle bits pass
+    // unnoticed. The log holds 256 of the 300 flips: bound the other 44.
+    let bits: Vec<u64> = flips
         .iter()
-        .filter(|flip| flip["bit"].as_u64().unwrap() < 16)
+        .map(|flip| flip["bit"].as_u64().unwrap())
+        .collect();
+    let counter_hits = bits.iter().filter(|&&bit| bit < 16).count() as u64;
+    let high_angle_hits = bits
+        .iter()
+        .filter(|&&bit| (32..40).contains(&bit) || (56..64).contains(&bit))
         .count() as u64;
-    let caught = host(&faults, "angle_sequence_gaps") + host(&faults, "late_readings");
-    assert!(counter_hits > 0);
+    let bit_15_hits = bits.iter().filter(|&&bit| bit == 31 || bit == 55).count() as u64;
+    let sequence = host(&faults, "angle_sequence_gaps") + host(&faults, "late_readings");
+    let implausible = host(&faults, "implausible_readings");
+    assert!(counter_hits > 0 && high_angle_hits > 0, "{bits:?}");
     assert!(
-        (counter_hits..=counter_hits + 44).contains(&caught),
-        "{counter_hits} counter hits logged, {caught} caught"
+        (counter_hits..=counter_hits + 44).contains(&sequence),
+        "{counter_hits} counter hits logged, {sequence} caught"
+    );
+    assert!(
+        (high_angle_hits..=high_angle_hits + bit_15_hits + 44).contains(&implausible),
+        "{high_angle_hits} high angle hits logged, {implausible} caught"
     );
     assert_eq!(
         host(&faults, "repeated_steps"),
-        caught,
+        sequence + implausible,
         "each caught one is asked for again"
     );
 }

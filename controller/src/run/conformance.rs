@@ -31,9 +31,10 @@ use scanhil_protocol::ild::command::{IldCommand, IldInfo};
 use scanhil_protocol::ild::{IldError, IldValue};
 use scanhil_protocol::link::{IldLink, LinkError};
 use scanhil_protocol::message::FaultKind;
-use scanhil_protocol::plant_units::{ActuatorPair, FULL_RANGE_DEG};
+use scanhil_protocol::plant_units::ActuatorPair;
 use scanhil_protocol::slcan::SlcanMessage;
 
+use super::host_inbox::{plausible_angle_limit_rad, plausible_angles};
 use super::mirror_link::MirrorLink;
 use super::sensor_link::SensorLink;
 use super::sensor_setup::{COMMAND_TIMEOUT, stop_output};
@@ -60,8 +61,6 @@ const OVERLONG_COMMAND_LEN: usize = 300;
 const EXCHANGES: u64 = 2_500;
 /// A coil current no amplifier accepts, A.
 const OVER_CURRENT_A: f64 = 8.0;
-/// Margin on the mirror's range for the range check.
-const RANGE_MARGIN: f64 = 1.2;
 
 /// One check's verdict.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
@@ -90,7 +89,7 @@ pub async fn run_checks(
     let mut late: Option<String> = None;
     let mut slowest = Duration::ZERO;
     let mut out_of_range: Option<String> = None;
-    let limit_rad = FULL_RANGE_DEG.to_radians() * RANGE_MARGIN;
+    let limit_rad = plausible_angle_limit_rad();
     while k < EXCHANGES {
         let t0 = Instant::now();
         let exchange = match sensor.as_deref_mut() {
@@ -103,10 +102,7 @@ pub async fn run_checks(
         slowest = slowest.max(t0.elapsed());
         match exchange {
             Ok(angles) => {
-                let finite = angles.alpha.is_finite() && angles.beta.is_finite();
-                if out_of_range.is_none()
-                    && (!finite || angles.alpha.abs() > limit_rad || angles.beta.abs() > limit_rad)
-                {
+                if out_of_range.is_none() && !plausible_angles(angles) {
                     out_of_range = Some(format!(
                         "period {k}: alpha {} rad, beta {} rad",
                         angles.alpha, angles.beta

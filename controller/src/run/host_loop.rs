@@ -21,7 +21,7 @@ use scanhil_protocol::message::{
 };
 use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
-use super::host_inbox::HostInbox;
+use super::host_inbox::{HostInbox, plausible_angles};
 use super::pairing::AngleTrack;
 use super::power_backoff::{BackoffLog, PowerBackoff};
 use super::realtime::ControllerTiming;
@@ -258,8 +258,9 @@ impl<'a> HostLoop<'a> {
     }
 
     /// The same loop, waiting up to `tries` answer allowances for each reading and sending
-    /// the period's Step again after each silent one ([`Self::on_silence`]); 1 (the default)
-    /// never repeats a Step.
+    /// the period's Step again after each silent one ([`Self::on_silence`]); a reading with an
+    /// implausible angle (`host_inbox::plausible_angles`) is then taken as corrupted and
+    /// waited for again. 1 (the default) never repeats a Step and takes every reading.
     #[must_use]
     pub fn with_tries_per_reading(mut self, tries: u32) -> HostLoop<'a> {
         self.tries_per_reading = tries.max(1);
@@ -378,6 +379,11 @@ impl<'a> HostLoop<'a> {
                     Ok(Some((seq, angles))) => {
                         if self.inbox.count_reading(seq, k) != 0 {
                             // Another period's reading: counted as a gap, still waiting.
+                            return Heard::Nothing;
+                        }
+                        if self.tries_per_reading > 1 && !plausible_angles(angles) {
+                            // Corrupted on the way: waited for again (the Step is repeated).
+                            self.inbox.count_implausible();
                             return Heard::Nothing;
                         }
                         self.measured = angles;

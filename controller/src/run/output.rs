@@ -288,6 +288,7 @@ fn fault_report(
         "host_detected": {
             "angle_sequence_gaps": mirror.angle_sequence_gaps,
             "late_readings": mirror.late_readings,
+            "implausible_readings": mirror.implausible_readings,
             "malformed_frames": mirror.malformed_frames,
             "foreign_frames": mirror.foreign_frames,
             "repeated_steps": run.record.repeated_steps,
