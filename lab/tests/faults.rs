@@ -356,3 +356,22 @@ fn the_sensor_losing_its_peak_is_sent_and_seen_as_the_ild_error_values() {
     );
     assert!(errors(faulty_samples) > errors(clean_samples));
 }
+
+#[test]
+fn a_bit_flip_in_a_step_is_never_stepped_and_the_step_is_sent_again() {
+    let at: Vec<Value> = (100..300)
+        .map(|period| serde_json::json!({"period": period, "fault": "bit_flip", "message": "Step"}))
+        .collect();
+    let (outcome, faults) =
+        run_faulty(&small_loop(serde_json::json!({"host_to_node": {"at": at}})));
+    completed(&outcome, &faults);
+    // Step's payload is its 32-bit period counter alone: every flip makes it another period,
+    // counted and not stepped, or (bit 0 of an odd period) the period just stepped, answered
+    // again with its reading, which the host counts late.
+    let repeats = node(&faults, "repeated_steps");
+    assert_eq!(node(&faults, "out_of_order_steps") + repeats, 200);
+    assert_eq!(host(&faults, "late_readings"), repeats);
+    assert_eq!(host(&faults, "repeated_steps"), 200);
+    let summary = &outcome.run.emulator_summary.as_ref().unwrap()["summary"];
+    assert_eq!(summary["node"]["periods"], 2000, "stepped once per period");
+}
