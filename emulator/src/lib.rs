@@ -13,6 +13,7 @@
 //! - [`optics`]: from mirror angles to the laser spot on the surface, with shading and, as a
 //!   scene option, a second bounce ([`optics::multipath`]).
 //! - [`sensor`]: the ILD 2300-100 triangulation sensor on its own clock.
+//! - [`sensor_faults`]: the sensor losing its peak (laser off, out of range, occlusion).
 //! - [`mirror`]: eq. 4 per sensing axis.
 //! - [`amplifier`], [`cross_talk`], [`power`], [`angle_sensor`]: the drive and the angle
 //!   sensor.
@@ -33,4 +34,5 @@ pub mod power;
 pub mod precision;
 pub mod scene;
 pub mod sensor;
+pub mod sensor_faults;
 pub mod serve;

@@ -17,7 +17,8 @@ use std::time::Duration;
 
 use anyhow::{Context, bail};
 use scanhil_controller::run::host_inbox::HostInbox;
-use scanhil_controller::run::host_loop::{HostAction, HostLoop, LoopError};
+use scanhil_controller::run::host_loop::{Heard, HostAction, HostLoop, LoopError};
+use scanhil_controller::run::link_faults::LinkFaults;
 use scanhil_controller::run::out_folder::OutputFolder;
 use scanhil_controller::run::output::{self, RunData};
 use scanhil_controller::run::pairing::SensorClock;
@@ -28,6 +29,7 @@ use scanhil_controller::run::sensor_setup::SensorSetupReport;
 use scanhil_controller::run::{EmulatedDevices, ScanEnd};
 use scanhil_emulator::scene::Part;
 use scanhil_emulator::sensor::IldSample;
+use scanhil_emulator::sensor_faults::SensorFaultModel;
 use scanhil_emulator::serve::lockstep_node::{LockstepNode, NodeReply, NodeSend};
 use scanhil_emulator::serve::mirror_node::MirrorNode;
 use scanhil_emulator::serve::sensor_port::SensorClockTrack;
@@ -53,6 +55,22 @@ pub struct InProcessOutcome {
     pub plan: PlanSummary,
     /// How the run ended (as the output writer says, when it ran).
     pub end: ScanEnd,
+    /// The frames each side sent and received, counted by the transport (apart from the
+    /// fault injector's own ledger).
+    pub wire: WireCounts,
+}
+
+/// Frames counted where they leave and reach each side.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct WireCounts {
+    /// Frames the host sent.
+    pub host_sent: u64,
+    /// Frames handed to the node.
+    pub node_received: u64,
+    /// Frames the node sent.
+    pub node_sent: u64,
+    /// Frames handed to the host.
+    pub host_received: u64,
 }
 
 impl InProcessOutcome {
@@ -80,6 +98,20 @@ impl InProcessOutcome {
 /// files that do not load or cannot be written, a controller or scene that disagrees with the
 /// rig (as `scanhil scan` refuses them), a plant error.
 pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProcessOutcome> {
+    run_probed(scenario, out_dir, u64::MAX, &mut |_| {})
+}
+
+/// [`run`], calling `probe` with the periods done every `every_periods` periods (a soak
+/// samples its memory there).
+///
+/// # Errors
+/// As [`run`].
+pub fn run_probed(
+    scenario: &Scenario,
+    out_dir: Option<&Path>,
+    every_periods: u64,
+    probe: &mut dyn FnMut(u64),
+) -> anyhow::Result<InProcessOutcome> {
     if scenario.timing.mode != TimingMode::Lockstep {
         bail!(
             "{}: the in-process loop runs in lockstep only",
@@ -132,7 +164,22 @@ pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProc
     // Held to the end of the run, as `scanhil scan` holds its folder.
     let _folder = out_dir.map(OutputFolder::claim).transpose()?;
     let mut transport = Transport::new(out_dir, serves_sensor, measuring_rate_hz)?;
+    transport.faults = LinkFaults::new(&scenario.faults, scenario.seed, period_s);
+    // Injected frame faults are survived as over a link: a reading that does not come gets
+    // its Step sent again, up to the watchdog's periods.
+    let tries = if transport.faults.is_some() {
+        scenario.timing.watchdog_periods
+    } else {
+        1
+    };
     let mut node = MirrorNode::new(plant);
+    if scenario.faults.sensor.is_active() {
+        node = node.with_sensor_faults(SensorFaultModel::new(
+            scenario.faults.sensor.clone(),
+            scene.seed,
+            scene.sensor.unwrap_or_default().measuring_rate_hz,
+        ));
+    }
     let mut lockstep_node = LockstepNode::new(&mut node, DEFAULT_HEARTBEAT_HZ);
     let mut host = HostLoop::new(
         &mut controller,
@@ -141,7 +188,8 @@ pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProc
         HostInbox::new(LINK_NAME),
     )
     .with_lead_in(plan_summary.lead_in.periods)
-    .with_backoff(backoff);
+    .with_backoff(backoff)
+    .with_tries_per_reading(tries);
     loop {
         match host.next_action() {
             HostAction::Done => break,
@@ -152,14 +200,23 @@ pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProc
             }
             HostAction::AwaitReading { period, t_s } => match transport.host_receives(t_s)? {
                 Some(frame) => {
-                    host.on_frame(&frame, tokio::time::Instant::now());
+                    if let Heard::Reading(k) = host.on_frame(&frame, tokio::time::Instant::now())
+                        && (k + 1) % every_periods == 0
+                    {
+                        probe(k + 1);
+                    }
                 }
-                None => host.on_error(LoopError::LinkTimeout {
-                    link: LINK_NAME.to_owned(),
-                    period,
-                    periods: scenario.timing.watchdog_periods,
-                    waited: Duration::ZERO,
-                }),
+                None => match host.on_silence() {
+                    Some(step) => {
+                        transport.host_sends(&step.frame, step.t_s, &mut lockstep_node)?
+                    }
+                    None => host.on_error(LoopError::LinkTimeout {
+                        link: LINK_NAME.to_owned(),
+                        period,
+                        periods: scenario.timing.watchdog_periods,
+                        waited: Duration::ZERO,
+                    }),
+                },
             },
             HostAction::AwaitNodeReady { t_s } => match transport.host_receives(t_s)? {
                 Some(frame) => {
@@ -184,6 +241,7 @@ pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProc
             "final_state": node.state(),
             "held_coil_currents_a": node.held_command_a(),
             "sensor": transport.sensor.as_ref().map(|sensor| sensor.track),
+            "sensor_faults": node.sensor_fault_counts(),
             "timing": serde_json::Value::Null,
         },
     });
@@ -195,6 +253,8 @@ pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProc
             measuring_rate_hz,
             counter_zero_s,
         });
+    let frame_faults = transport.faults.as_ref().map(LinkFaults::report);
+    let wire = transport.wire;
     let sensor = transport.finish()?;
     let end = ScanEnd::of(&record);
     let mut outcome = InProcessOutcome {
@@ -205,6 +265,7 @@ pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProc
             node_events: inbox.events().to_vec(),
             sensor,
             emulator_summary: Some(node_summary),
+            frame_faults,
             run_time_s: started.elapsed().as_secs_f64(),
             sensor_setup: serves_sensor.then(|| SensorSetupReport::Skipped {
                 reason: "in process: the emulated sensor starts as the loop needs it; there is \
@@ -216,6 +277,7 @@ pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProc
         scenario: scenario.clone(),
         plan: plan_summary,
         end,
+        wire,
     };
     if let Some(dir) = out_dir {
         outcome.end = outcome.write(dir)?;
@@ -232,6 +294,9 @@ struct Transport {
     clock: VirtualClock,
     capture: Option<CanCapture>,
     sensor: Option<MemorySensor>,
+    /// Injected frame faults between the host and the node.
+    faults: Option<LinkFaults>,
+    wire: WireCounts,
 }
 
 /// The ILD stream in memory: the emulated sensor's side (its clock) and the host's decoding.
@@ -287,12 +352,34 @@ impl Transport {
             clock,
             capture,
             sensor,
+            faults: None,
+            wire: WireCounts::default(),
         })
     }
 
-    /// The host sends `frame` at loop time `t_s`: recorded, then handled by the node, whose
-    /// answers are queued for the host (frames) or go out on the ILD stream (samples).
+    /// The host sends `frame` at loop time `t_s`: past the injected faults, if any, each
+    /// frame that reaches the node is recorded and handled by it.
     fn host_sends(
+        &mut self,
+        frame: &CanFrame,
+        t_s: f64,
+        node: &mut LockstepNode<'_>,
+    ) -> anyhow::Result<()> {
+        self.wire.host_sent += 1;
+        match &mut self.faults {
+            None => self.node_receives(frame, t_s, node),
+            Some(faults) => {
+                let passed: Vec<CanFrame> = faults.outgoing(frame, t_s).collect();
+                passed
+                    .iter()
+                    .try_for_each(|frame| self.node_receives(frame, t_s, node))
+            }
+        }
+    }
+
+    /// A frame reaches the node at loop time `t_s`: recorded, then handled by the node, whose
+    /// answers are queued for the host (frames) or go out on the ILD stream (samples).
+    fn node_receives(
         &mut self,
         frame: &CanFrame,
         t_s: f64,
@@ -302,17 +389,22 @@ impl Transport {
         if self.node_finished {
             return Ok(());
         }
+        self.wire.node_received += 1;
         match node.on_frame(frame)? {
             NodeReply::Ignored => {}
             NodeReply::Send(sends) => {
                 for send in sends {
                     match send {
-                        NodeSend::Frame(frame) => self.to_host.push_back(frame),
+                        NodeSend::Frame(frame) => {
+                            self.wire.node_sent += 1;
+                            self.to_host.push_back(frame);
+                        }
                         NodeSend::Samples(samples) => self.emit_samples(&samples)?,
                     }
                 }
             }
             NodeReply::EndOfRun(ready) => {
+                self.wire.node_sent += 1;
                 self.to_host.push_back(ready);
                 self.node_finished = true;
             }
@@ -320,14 +412,26 @@ impl Transport {
         Ok(())
     }
 
-    /// The host takes the node's next frame at loop time `t_s` (recorded); `None` when the
-    /// node has sent nothing more.
+    /// The host takes the node's next frame at loop time `t_s` (recorded as the node sent
+    /// it, before any injected fault); `None` when nothing more has reached the host.
     fn host_receives(&mut self, t_s: f64) -> anyhow::Result<Option<CanFrame>> {
-        let frame = self.to_host.pop_front();
-        if let Some(frame) = &frame {
-            self.record(frame, t_s)?;
+        loop {
+            if let Some(frame) = self.faults.as_mut().and_then(|f| f.next_incoming(t_s)) {
+                self.wire.host_received += 1;
+                return Ok(Some(frame));
+            }
+            let Some(frame) = self.to_host.pop_front() else {
+                return Ok(None);
+            };
+            self.record(&frame, t_s)?;
+            match &mut self.faults {
+                None => {
+                    self.wire.host_received += 1;
+                    return Ok(Some(frame));
+                }
+                Some(faults) => faults.incoming(&frame, t_s),
+            }
         }
-        Ok(frame)
     }
 
     /// The sensor's samples as the ILD stream sends them (a distance and its counter per

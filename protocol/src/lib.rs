@@ -11,6 +11,8 @@
 //!   axis rotation (cargo feature `clap`: the axis as a command-line value).
 //! - [`bus_load`]: worst-case bits per frame and the load a message budget puts on a bus.
 //! - [`candump`]: candump `-L` log lines, reader and writer (classical and FD).
+//! - [`fault_injection`]: injected faults on a frame stream (drop, delay, duplicate, reorder,
+//!   bit flip), seeded and deterministic, with a ledger of every frame.
 //! - [`dbc`]: the DBC file rendered from the message table (`protocol/scanhil.dbc`).
 //! - [`ild`]: the ILD 2300 sensor: RS422 values, the L/M/H byte stream, ASCII commands.
 //! - [`loop_timing`]: period jitter and overruns of a real-time loop, as both ends report them.
@@ -21,6 +23,7 @@ pub mod bus_load;
 pub mod can;
 pub mod candump;
 pub mod dbc;
+pub mod fault_injection;
 pub mod ild;
 #[cfg(feature = "links")]
 pub mod link;

@@ -29,3 +29,5 @@ mod interrupted;
 mod killed;
 // The output folder: one scan at a time, no stale files after a re-scan.
 mod out_folder;
+// Faults declared in a scenario over ptys: injected, detected, reported, nothing lost.
+mod faults;

@@ -78,6 +78,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         emulator: args.emulator,
         scene,
         seed: 0,
+        sensor_faults: Default::default(),
         timing: TimingConfig {
             watchdog_periods: args.watchdog_periods,
             lockstep_answer_allowance_s: args.answer_allowance_s,

@@ -46,6 +46,12 @@ pub struct Args {
     /// The `scanhil-emulator` binary (default: $SCANHIL_EMULATOR, else next to `scanhil`).
     #[arg(long)]
     emulator: Option<PathBuf>,
+    /// Injects a fault, over the scenario's `faults`: `KEY=VALUE` with KEY a field below
+    /// `faults` and VALUE JSON, such as `node_to_host.drop_rate=0.001`,
+    /// `host_to_node.at=[{"period":500,"fault":"drop","message":"Step"}]` or
+    /// `sensor.laser_off=[{"from_s":0.1,"to_s":0.2}]` (repeatable; checked as the file is).
+    #[arg(long = "fault", value_name = "KEY=VALUE")]
+    faults: Vec<String>,
 }
 
 /// The timing modes on the command line.
@@ -76,6 +82,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         watchdog_periods: args.watchdog_periods,
         lead_in_s: args.lead_in_s,
         no_emulator: args.no_emulator,
+        faults: args.faults,
     };
     let end = run_scan(&scenario, &options)
         .with_context(|| format!("scan {}", args.scenario.display()))?;

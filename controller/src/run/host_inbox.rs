@@ -6,7 +6,7 @@
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::ild::IldValue;
 use scanhil_protocol::message::{FaultKind, Message, MessageError, NodeId, NodeState};
-use scanhil_protocol::plant_units::SensingPair;
+use scanhil_protocol::plant_units::{FULL_RANGE_DEG, SensingPair};
 
 use super::host_loop::LoopError;
 
@@ -30,12 +30,38 @@ pub struct NodeEvent {
 pub struct MirrorLinkCounters {
     /// Angle readings received.
     pub angle_readings: u64,
-    /// Angle readings whose sequence counter was not the one waited for (skipped or stale).
+    /// Angle readings ahead of the one waited for (sequence counter skipped values, mod 2^16).
     pub angle_sequence_gaps: u64,
+    /// Angle readings of an earlier period than the one waited for (a duplicate, a delayed or
+    /// reordered frame, an answer to a repeated Step): counted, not used.
+    pub late_readings: u64,
+    /// Awaited angle readings with an angle no mirror reaches ([`plausible_angles`]: beyond
+    /// its range with margin, or not finite), taken as corrupted and asked for again (only
+    /// while Steps are repeated, see `HostLoop::with_tries_per_reading`).
+    pub implausible_readings: u64,
     /// Frames with a loop id and a malformed payload.
     pub malformed_frames: u64,
     /// Frames with ids that are not loop messages (other traffic).
     pub foreign_frames: u64,
+}
+
+/// Margin on the mirror's range beyond which an angle reading is not plausible.
+pub const ANGLE_RANGE_MARGIN: f64 = 1.2;
+
+/// The largest plausible angle magnitude of a reading, rad: the mirror's range
+/// ([`FULL_RANGE_DEG`]) times [`ANGLE_RANGE_MARGIN`].
+#[must_use]
+pub fn plausible_angle_limit_rad() -> f64 {
+    FULL_RANGE_DEG.to_radians() * ANGLE_RANGE_MARGIN
+}
+
+/// Whether both angles are finite and within [`plausible_angle_limit_rad`].
+#[must_use]
+pub fn plausible_angles(angles: SensingPair) -> bool {
+    let limit_rad = plausible_angle_limit_rad();
+    [angles.alpha, angles.beta]
+        .iter()
+        .all(|angle| angle.is_finite() && angle.abs() <= limit_rad)
 }
 
 /// A Distance frame's counter and value, with its arrival (for a real sensor's clock).
@@ -134,15 +160,22 @@ impl HostInbox {
     }
 
     /// Counts an angle reading with sequence counter `seq` taken while period `expected` was
-    /// awaited; returns how far ahead of it the reading is (mod 2^16; 0: the one awaited,
-    /// anything else is counted as a sequence gap).
+    /// awaited; returns how far ahead of it the reading is (mod 2^16; 0: the one awaited;
+    /// up to 2^15 - 1 ahead is counted as a sequence gap, further as a late reading).
     pub fn count_reading(&mut self, seq: u16, expected: u64) -> u16 {
         self.counters.angle_readings += 1;
         let offset = seq.wrapping_sub(expected as u16);
-        if offset != 0 {
-            self.counters.angle_sequence_gaps += 1;
+        match offset {
+            0 => {}
+            ahead if ahead < 0x8000 => self.counters.angle_sequence_gaps += 1,
+            _ => self.counters.late_readings += 1,
         }
         offset
+    }
+
+    /// Counts an awaited reading taken as corrupted ([`plausible_angles`]).
+    pub fn count_implausible(&mut self) {
+        self.counters.implausible_readings += 1;
     }
 
     /// Whether the newest event is the mirror node's Status(ready) (its last frame of a run).

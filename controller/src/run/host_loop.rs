@@ -21,7 +21,7 @@ use scanhil_protocol::message::{
 };
 use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
-use super::host_inbox::HostInbox;
+use super::host_inbox::{HostInbox, plausible_angles};
 use super::pairing::AngleTrack;
 use super::power_backoff::{BackoffLog, PowerBackoff};
 use super::realtime::ControllerTiming;
@@ -98,6 +98,8 @@ pub struct LoopRecord {
     pub loop_epoch: Option<tokio::time::Instant>,
     /// What the power back-off did (None: not active).
     pub power_backoff: Option<BackoffLog>,
+    /// Step frames sent again because no reading came within one answer allowance.
+    pub repeated_steps: u64,
 }
 
 impl LoopRecord {
@@ -116,6 +118,7 @@ impl LoopRecord {
             controller_timing: None,
             loop_epoch: None,
             power_backoff: None,
+            repeated_steps: 0,
         }
     }
 
@@ -224,6 +227,10 @@ pub struct HostLoop<'a> {
     measured: SensingPair,
     phase: Phase,
     backoff: PowerBackoff,
+    /// Answer allowances a reading may take, each after the first with its Step sent again.
+    tries_per_reading: u32,
+    /// Allowances used up waiting for the current reading.
+    silent_tries: u32,
 }
 
 impl<'a> HostLoop<'a> {
@@ -245,7 +252,36 @@ impl<'a> HostLoop<'a> {
             measured: SensingPair::default(),
             phase: Phase::Start(0),
             backoff: PowerBackoff::inactive(),
+            tries_per_reading: 1,
+            silent_tries: 0,
         }
+    }
+
+    /// The same loop, waiting up to `tries` answer allowances for each reading and sending
+    /// the period's Step again after each silent one ([`Self::on_silence`]); a reading with an
+    /// implausible angle (`host_inbox::plausible_angles`) is then taken as corrupted and
+    /// waited for again. 1 (the default) never repeats a Step and takes every reading.
+    #[must_use]
+    pub fn with_tries_per_reading(mut self, tries: u32) -> HostLoop<'a> {
+        self.tries_per_reading = tries.max(1);
+        self
+    }
+
+    /// No frame came within one answer allowance while a reading was awaited: returns the
+    /// period's Step to send again (the node answers a repeated Step with the same reading),
+    /// or `None` when the reading's tries are used up (the transport then reports the link
+    /// timeout with [`Self::on_error`]).
+    pub fn on_silence(&mut self) -> Option<StampedFrame> {
+        let Phase::Reading(k) = self.phase else {
+            return None;
+        };
+        self.silent_tries += 1;
+        if self.silent_tries >= self.tries_per_reading {
+            return None;
+        }
+        let frame = stamped(&Message::Step { step: k as u32 }, k as f64 * self.period_s).ok()?;
+        self.record.repeated_steps += 1;
+        Some(frame)
     }
 
     /// The same loop, its first `lead_in_periods` periods being the lead-in before the recorded
@@ -345,11 +381,17 @@ impl<'a> HostLoop<'a> {
                             // Another period's reading: counted as a gap, still waiting.
                             return Heard::Nothing;
                         }
+                        if self.tries_per_reading > 1 && !plausible_angles(angles) {
+                            // Corrupted on the way: waited for again (the Step is repeated).
+                            self.inbox.count_implausible();
+                            return Heard::Nothing;
+                        }
                         self.measured = angles;
                         let scale = self.backoff.scale_at(k + 1);
                         self.record
                             .push_scaled_reading(self.trajectory, scale, k, angles);
                         self.phase = Phase::Start(k + 1);
+                        self.silent_tries = 0;
                         Heard::Reading(k)
                     }
                     Ok(None) => Heard::Nothing,

@@ -16,8 +16,11 @@ use super::sensor_link::SensorLink;
 /// Runs `host`'s lockstep periods over `mirror`, then ends the run with the node. A link
 /// error or a stopping signal stops the loop (after commanding zero where the link still
 /// allows it) and is returned inside the record, so what was recorded stays. The inbox `host`
-/// files frames into goes back to `mirror` at the end.
+/// files frames into goes back to `mirror` at the end. With `repeats_steps` (the host loop
+/// built [`HostLoop::with_tries_per_reading`] the watchdog's periods), each answer allowance
+/// without a reading sends the period's Step again, until the watchdog's allowance is used up.
 pub async fn run(
+    repeats_steps: bool,
     mirror: &mut MirrorLink,
     sensor: &mut SensorLink,
     mut host: HostLoop<'_>,
@@ -25,7 +28,14 @@ pub async fn run(
     interrupt: &mut Interrupt,
 ) -> LoopRecord {
     let allowance = mirror.total_allowance();
-    let mut deadline = tokio::time::Instant::now() + allowance;
+    // With Step repeats armed, each try waits one answer allowance; otherwise the one try
+    // waits the watchdog's whole allowance.
+    let try_allowance = if repeats_steps {
+        mirror.answer_allowance()
+    } else {
+        allowance
+    };
+    let mut sent_at = tokio::time::Instant::now();
     loop {
         let received: Result<CanFrame, LoopError> = match host.next_action() {
             HostAction::Done => break,
@@ -34,10 +44,11 @@ pub async fn run(
                     host.on_error(error);
                 }
                 // Each wait's allowance starts when its frames went out.
-                deadline = tokio::time::Instant::now() + allowance;
+                sent_at = tokio::time::Instant::now();
                 continue;
             }
             HostAction::AwaitReading { period, t_s } => {
+                let deadline = sent_at + try_allowance;
                 let received = tokio::select! {
                     frame = tokio::time::timeout_at(deadline, mirror.recv_at(t_s)) => Some(frame),
                     error = sensor.pump() => {
@@ -51,12 +62,21 @@ pub async fn run(
                 };
                 match received {
                     None => continue,
-                    Some(Err(_elapsed)) => Err(mirror.timeout(period, allowance)),
+                    Some(Err(_elapsed)) => match host.on_silence() {
+                        Some(step) => {
+                            if let Err(error) = mirror.send_stamped(&step).await {
+                                host.on_error(error);
+                            }
+                            sent_at = tokio::time::Instant::now();
+                            continue;
+                        }
+                        None => Err(mirror.timeout(period, allowance)),
+                    },
                     Some(Ok(frame)) => frame.map_err(LoopError::from),
                 }
             }
             HostAction::AwaitNodeReady { t_s } => {
-                match tokio::time::timeout_at(deadline, mirror.recv_at(t_s)).await {
+                match tokio::time::timeout_at(sent_at + allowance, mirror.recv_at(t_s)).await {
                     Err(_elapsed) => Err(mirror.timeout(host.record().periods_done, allowance)),
                     Ok(frame) => frame.map_err(LoopError::from),
                 }

@@ -11,6 +11,7 @@ use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 pub use super::host_inbox::{CanDistance, HostInbox, MirrorLinkCounters, NodeEvent};
 pub use super::host_loop::LoopError;
 use super::host_loop::{StampedFrame, coil_command_frame, period_frames};
+use super::link_faults::{InjectedFrameFaults, LinkFaults};
 
 /// The controller's end of the mirror node's link.
 #[derive(Debug)]
@@ -21,6 +22,8 @@ pub struct MirrorLink {
     answer_allowance: Duration,
     watchdog_periods: u32,
     inbox: HostInbox,
+    /// Injected frame faults between the loop and the link (lockstep).
+    faults: Option<LinkFaults>,
 }
 
 impl MirrorLink {
@@ -43,7 +46,33 @@ impl MirrorLink {
             answer_allowance,
             watchdog_periods: watchdog_periods.max(1),
             inbox,
+            faults: None,
         }
+    }
+
+    /// Injects `faults` between the loop and the link from now on: what the host sends passes
+    /// them on its way to the node, what the node sends on its way to the loop. The link's
+    /// recording holds the node's side: the frames as the node received and sent them.
+    pub fn set_faults(&mut self, faults: LinkFaults) {
+        self.faults = Some(faults);
+    }
+
+    /// What the injected frame faults did (`None`: none were injected).
+    #[must_use]
+    pub fn fault_report(&self) -> Option<InjectedFrameFaults> {
+        self.faults.as_ref().map(LinkFaults::report)
+    }
+
+    /// The watchdog's periods.
+    #[must_use]
+    pub fn watchdog_periods(&self) -> u32 {
+        self.watchdog_periods
+    }
+
+    /// The wall-clock allowance for one answer.
+    #[must_use]
+    pub fn answer_allowance(&self) -> Duration {
+        self.answer_allowance
     }
 
     /// Lockstep period `k`: sends CoilCommand(k) and Step(k), waits for AngleReading(k).
@@ -217,14 +246,22 @@ impl MirrorLink {
     }
 
     /// Sends one period's frames with one write (SLCAN), each recorded stamped with its
-    /// loop time (lockstep).
+    /// loop time (lockstep); declared frame faults act on them on the way out.
     ///
     /// # Errors
     /// Link errors.
     pub async fn send_period(&mut self, frames: &[StampedFrame]) -> Result<(), LoopError> {
         for frame in frames {
             self.at(frame.t_s);
-            self.port.queue(&frame.frame).await?;
+            match &mut self.faults {
+                None => self.port.queue(&frame.frame).await?,
+                Some(faults) => {
+                    let passed: Vec<CanFrame> = faults.outgoing(&frame.frame, frame.t_s).collect();
+                    for frame in &passed {
+                        self.port.queue(frame).await?;
+                    }
+                }
+            }
         }
         self.port.flush().await?;
         Ok(())
@@ -237,7 +274,17 @@ impl MirrorLink {
     /// Link errors ([`LinkError::HangUp`] when the node went away).
     pub async fn recv_at(&mut self, t_s: f64) -> Result<CanFrame, LinkError> {
         self.at(t_s);
-        self.port.recv().await
+        let Some(faults) = &mut self.faults else {
+            return self.port.recv().await;
+        };
+        loop {
+            if let Some(frame) = faults.next_incoming(t_s) {
+                return Ok(frame);
+            }
+            // Cancel-safe: the link's receive is, and a received frame is filed at once.
+            let frame = self.port.recv().await?;
+            faults.incoming(&frame, t_s);
+        }
     }
 
     /// The watchdog's whole allowance: its periods times the allowance per answer.

@@ -35,6 +35,7 @@ pub mod host_inbox;
 pub mod host_loop;
 pub mod interrupt;
 pub mod lead_in;
+pub mod link_faults;
 pub mod lockstep;
 pub mod mirror_link;
 pub mod out_folder;
@@ -63,6 +64,7 @@ use scanhil_protocol::link::{CanCapture, CanLink, CaptureClock, PtyPair, Virtual
 use emulator_process::{EmulatorProcess, locate_emulator};
 use host_loop::HostLoop;
 use lead_in::LeadIn;
+use link_faults::LinkFaults;
 use mirror_link::MirrorLink;
 use pairing::SensorClock;
 use plan::ScanPlan;
@@ -94,6 +96,9 @@ pub struct ScanOptions {
     pub lead_in_s: Option<f64>,
     /// Do not start the emulator (the nodes are already on the links).
     pub no_emulator: bool,
+    /// Fault overrides `KEY=VALUE` below the scenario's `faults`
+    /// ([`link_faults::FaultsConfig::with_override`]), applied in order.
+    pub faults: Vec<String>,
 }
 
 /// How the scan ended, for the exit status.
@@ -144,6 +149,15 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
     if options.no_emulator {
         scenario.links.spawn_emulator = false;
     }
+    for assignment in &options.faults {
+        scenario.faults = scenario
+            .faults
+            .with_override(assignment)
+            .map_err(|source| scenario::ScenarioError::InvalidFaults {
+                path: scenario.path.clone(),
+                source,
+            })?;
+    }
     // The overrides pass the same checks as the file.
     scenario.check()?;
     let plan = ScanPlan::new(&scenario)?;
@@ -179,6 +193,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             emulator: options.emulator.clone(),
             scene: scenario.scene.clone().unwrap_or_default(),
             seed: scenario.seed,
+            sensor_faults: scenario.faults.sensor.clone(),
             timing: scenario.timing,
             period_s,
             duration_s: periods as f64 * period_s,
@@ -191,6 +206,17 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             interrupt::Interrupt::install().context("installing the signal handlers")?;
         let record = match scenario.timing.mode {
             TimingMode::Lockstep => {
+                // Injected frame faults are survived by repeating a Step that got no answer.
+                let faults = LinkFaults::new(&scenario.faults, scenario.seed, period_s);
+                let repeats_steps = faults.is_some();
+                let tries = if repeats_steps {
+                    scenario.timing.watchdog_periods
+                } else {
+                    1
+                };
+                if let Some(faults) = faults {
+                    links.mirror.set_faults(faults);
+                }
                 let host = HostLoop::new(
                     &mut controller,
                     &scenario.trajectory,
@@ -198,8 +224,10 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
                     links.mirror.take_inbox(),
                 )
                 .with_lead_in(lead_in_periods)
-                .with_backoff(backoff);
+                .with_backoff(backoff)
+                .with_tries_per_reading(tries);
                 lockstep::run(
+                    repeats_steps,
                     &mut links.mirror,
                     &mut links.sensor,
                     host,
@@ -224,6 +252,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         let can_distances = links.mirror.take_distances();
         let mirror_counters = links.mirror.counters();
         let node_events = links.mirror.events().to_vec();
+        let frame_faults = links.mirror.fault_report();
         // Closing the mirror link (`C` on SLCAN) ends the emulator's run; the sensor stream
         // then drains. A failed close (the node is gone) leaves nothing open.
         let _ = links.mirror.close().await;
@@ -250,6 +279,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             sensor: links.sensor.take_samples(),
             sensor_setup: links.sensor_setup,
             emulator_summary,
+            frame_faults,
             run_time_s: started.elapsed().as_secs_f64(),
         })
     })?;
@@ -279,6 +309,8 @@ pub struct LinkPlan {
     pub scene: PathBuf,
     /// The plant's seed.
     pub seed: u64,
+    /// The sensor losing its peak (handed to an emulator started here).
+    pub sensor_faults: scanhil_protocol::fault_injection::SensorFaults,
     /// Timing and watchdog.
     pub timing: scenario::TimingConfig,
     /// The control period, s.
@@ -336,6 +368,11 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
     if timing.mode == TimingMode::Realtime {
         emulator_args.push("--duration-s".into());
         emulator_args.push(plan.duration_s.to_string());
+    }
+    if plan.sensor_faults.is_active() {
+        emulator_args.push("--sensor-faults".into());
+        emulator_args
+            .push(serde_json::to_string(&plan.sensor_faults).context("writing the sensor faults")?);
     }
     let mut spawn = plan.spawn_emulator;
     let fsm_pty = match &plan.fsm {

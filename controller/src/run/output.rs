@@ -20,6 +20,7 @@ use scanhil_report::{Axis, Chart, Series, draw_charts};
 use scanhil_scene::truth::TrueScene;
 
 use super::ScanEnd;
+use super::link_faults::InjectedFrameFaults;
 use super::lockstep::LoopRecord;
 use super::mirror_link::{MirrorLinkCounters, NodeEvent};
 use super::pairing::{CounterUnwrapper, SensorClock};
@@ -61,6 +62,8 @@ pub struct RunData {
     pub sensor_setup: Option<super::sensor_setup::SensorSetupReport>,
     /// The emulator's exit status and summary line, when it was started by this run.
     pub emulator_summary: Option<serde_json::Value>,
+    /// What the injected frame faults did (`None`: none declared).
+    pub frame_faults: Option<InjectedFrameFaults>,
     /// Wall-clock time from opening the links (or starting the in-process loop) to the end
     /// of the loop, s.
     pub run_time_s: f64,
@@ -244,11 +247,66 @@ pub fn write(
             "sensor": sensor_counters,
             "node_events": run.node_events,
         },
+        "faults": scenario.faults.is_active().then(|| fault_report(scenario, run, &sensor_counters)),
         "emulator": run.emulator_summary,
     });
     let text = serde_json::to_string_pretty(&report).context("formatting report.json")?;
     std::fs::write(out_dir.join(REPORT), text + "\n").context("writing report.json")?;
     Ok(end)
+}
+
+/// `report.json` `faults`: what was declared, what was injected (frames on each direction of
+/// the mirror's link, samples of the sensor), and what each side detected.
+fn fault_report(
+    scenario: &Scenario,
+    run: &RunData,
+    sensor_counters: &SensorCounters,
+) -> serde_json::Value {
+    let mut sensor_errors: BTreeMap<&'static str, u64> = BTreeMap::new();
+    for sample in &run.sensor.0 {
+        if let IldValue::Error(error) = sample.value {
+            *sensor_errors.entry(error.name()).or_default() += 1;
+        }
+    }
+    let summary = run
+        .emulator_summary
+        .as_ref()
+        .map(|emulator| &emulator["summary"]);
+    let node = summary.map(|summary| &summary["node"]);
+    let node_detected = node.map(|node| {
+        serde_json::json!({
+            "command_gaps": node["command_gaps"],
+            "late_commands": node["late_commands"],
+            "repeated_commands": node["repeated_commands"],
+            "repeated_steps": node["repeated_steps"],
+            "out_of_order_steps": node["out_of_order_steps"],
+            "stale_periods": node["stale_periods"],
+            "malformed_frames": node["malformed_frames"],
+            "final_state": summary.map(|summary| &summary["final_state"]),
+            "held_coil_currents_a": summary.map(|summary| &summary["held_coil_currents_a"]),
+        })
+    });
+    let mirror = run.mirror_counters;
+    serde_json::json!({
+        "declared": scenario.faults,
+        "injected": {
+            "frames": run.frame_faults,
+            "sensor_samples": summary.map(|summary| &summary["sensor_faults"]),
+        },
+        "host_detected": {
+            "angle_sequence_gaps": mirror.angle_sequence_gaps,
+            "late_readings": mirror.late_readings,
+            "implausible_readings": mirror.implausible_readings,
+            "malformed_frames": mirror.malformed_frames,
+            "foreign_frames": mirror.foreign_frames,
+            "repeated_steps": run.record.repeated_steps,
+            "sensor_error_values": sensor_errors,
+            "sensor_counter_gaps": sensor_counters.counter_gaps,
+            "stopped_by": run.record.stopped_by.as_ref().map(ToString::to_string),
+            "stopped_in_period": run.record.stopped_by.as_ref().map(|_| run.record.periods_done),
+        },
+        "node_detected": node_detected,
+    })
 }
 
 /// A sensor's clock estimated from arrival times (real time, a real sensor): a sample arrives

@@ -57,6 +57,7 @@ impl LinkedPlant {
             emulator: emulator.map(Path::to_owned),
             scene,
             seed: 0,
+            sensor_faults: Default::default(),
             timing: TimingConfig {
                 watchdog_periods: WATCHDOG_PERIODS,
                 lockstep_answer_allowance_s: ANSWER_ALLOWANCE.as_secs_f64(),

@@ -16,11 +16,13 @@ use scanhil_geometry::GeometryModel;
 use serde::Deserialize;
 
 use super::lead_in::LeadIn;
+use super::link_faults::FaultsConfig;
 use super::power_guard::PowerConfig;
 use crate::imaging::feature::FeatureParams;
 use crate::imaging::pipeline::MAX_PROGRESSIVE_STEPS;
 use crate::rig::{Rig, RigError};
 use crate::trajectory::Trajectory;
+use scanhil_protocol::fault_injection::FaultConfigError;
 
 /// The longest scan a scenario may ask for, s (an hour of 20 kHz loop, 72 million periods).
 pub const MAX_DURATION_S: f64 = 3600.0;
@@ -58,6 +60,8 @@ pub struct Scenario {
     pub power: PowerConfig,
     /// How long the trajectory runs before the recorded frame ([`super::lead_in`]).
     pub lead_in: LeadIn,
+    /// Injected faults ([`super::link_faults`]; none by default).
+    pub faults: FaultsConfig,
 }
 
 /// How the loop is clocked.
@@ -213,6 +217,14 @@ pub enum ScenarioError {
         /// Why.
         reason: String,
     },
+    /// The `faults` section has a value that cannot run.
+    #[error("{path}: field `{}`: {}", .source.field, .source.reason)]
+    InvalidFaults {
+        /// The scenario file.
+        path: PathBuf,
+        /// The field (its full path) and why.
+        source: FaultConfigError,
+    },
 }
 
 #[derive(Deserialize)]
@@ -241,6 +253,8 @@ struct ScenarioFile {
     power: PowerConfig,
     #[serde(default)]
     lead_in: LeadIn,
+    #[serde(default)]
+    faults: FaultsConfig,
 }
 
 impl Scenario {
@@ -289,6 +303,7 @@ impl Scenario {
             imaging: file.imaging,
             power: file.power,
             lead_in: file.lead_in,
+            faults: file.faults,
         };
         scenario.check()?;
         Ok(scenario)
@@ -353,6 +368,26 @@ impl Scenario {
         let links_are_emulated = self.links.spawn_emulator
             || self.links.fsm == NodeLink::Pty
             || self.links.sensor == NodeLink::Pty;
+        self.faults
+            .check()
+            .map_err(|source| ScenarioError::InvalidFaults {
+                path: self.path.clone(),
+                source,
+            })?;
+        if self.faults.frames_active() && self.timing.mode != TimingMode::Lockstep {
+            return Err(invalid(
+                "faults",
+                "frame faults (host_to_node, node_to_host) are injected in lockstep only".into(),
+            ));
+        }
+        if self.faults.sensor.is_active() && !links_are_emulated {
+            return Err(invalid(
+                "faults.sensor",
+                "sensor faults are injected into the emulated sensor: they need emulated \
+                 devices (`pty` links or `spawn_emulator`)"
+                    .into(),
+            ));
+        }
         if self.scene.is_none() && links_are_emulated {
             return Err(invalid(
                 "scene",

@@ -4,6 +4,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
+use scanhil_protocol::fault_injection::SensorFaults;
 
 use scanhil_emulator::serve::misbehaviour::Misbehaviour;
 use scanhil_emulator::serve::{DEFAULT_HEARTBEAT_HZ, ServeConfig, ServeOutcome, TimingMode};
@@ -45,6 +46,17 @@ pub struct Args {
     /// docs/loop.md). Hidden from --help: no real use wants a broken node.
     #[arg(long, value_enum, hide = true)]
     misbehave: Option<Misbehaviour>,
+    /// The sensor losing its peak, as a scenario's `faults.sensor` JSON (laser off, out of
+    /// range, occlusion bursts); the samples carry the ILD's error values.
+    #[arg(long, value_parser = parse_sensor_faults)]
+    sensor_faults: Option<SensorFaults>,
+}
+
+/// Parses and checks `--sensor-faults` (the field named in the error).
+fn parse_sensor_faults(text: &str) -> Result<SensorFaults, String> {
+    let faults: SensorFaults = serde_json::from_str(text).map_err(|error| error.to_string())?;
+    faults.check().map_err(|error| error.to_string())?;
+    Ok(faults)
 }
 
 /// Runs the node(s) until the controller closes the link, the watchdog fires or the duration
@@ -65,6 +77,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         duration_s: args.duration_s,
         heartbeat_hz: args.heartbeat_hz,
         misbehave: args.misbehave,
+        sensor_faults: args.sensor_faults,
     };
     let outcome = scanhil_emulator::serve::serve(&config).context("serve")?;
     Ok(match outcome {

@@ -56,6 +56,9 @@ pub enum LockstepNodeError {
 pub struct LockstepNode<'a> {
     node: &'a mut MirrorNode,
     heartbeat_every: u64,
+    /// The Step counter of the period just stepped and its angle reading, answered again
+    /// when that Step comes again.
+    last_reading: Option<(u32, CanFrame)>,
 }
 
 impl<'a> LockstepNode<'a> {
@@ -66,6 +69,7 @@ impl<'a> LockstepNode<'a> {
         LockstepNode {
             node,
             heartbeat_every,
+            last_reading: None,
         }
     }
 
@@ -111,19 +115,33 @@ impl<'a> LockstepNode<'a> {
 
     /// Step(`step`): advances the plant one period and returns what goes out, in order: the
     /// angle reading, the sensor's samples, a fault frame for each fault that started, and a
-    /// Status frame on heartbeat periods.
+    /// Status frame on heartbeat periods. A Step for the period just stepped (a duplicate, or
+    /// the host asking again for a reading it did not get) is answered with the same angle
+    /// reading alone, the plant not stepped, and counted; a Step for any other period than the
+    /// next is counted and not answered.
     ///
     /// # Errors
     /// As [`Self::on_frame`].
     pub fn step(&mut self, step: u32) -> Result<Vec<NodeSend>, LockstepNodeError> {
+        if let Some((last, reading)) = self.last_reading
+            && last == step
+        {
+            self.node.on_repeated_step();
+            return Ok(vec![NodeSend::Frame(reading)]);
+        }
+        if !self.node.check_step_counter(step) {
+            // A stale or corrupted Step: stepping on it would shift every later period.
+            return Ok(Vec::new());
+        }
         let k = self.node.next_period();
-        self.node.check_step_counter(step);
         let mut sends = Vec::new();
         for output in self.node.step()? {
             match output {
-                NodeOutput::Angles(step) => {
-                    sends.push(NodeSend::Frame(angle_frame(&step)?));
-                    sends.push(NodeSend::Samples(step.sensor_samples));
+                NodeOutput::Angles(plant_step) => {
+                    let reading = angle_frame(&plant_step)?;
+                    self.last_reading = Some((step, reading));
+                    sends.push(NodeSend::Frame(reading));
+                    sends.push(NodeSend::Samples(plant_step.sensor_samples));
                 }
                 NodeOutput::Fault(kind, detail) => {
                     sends.push(NodeSend::Frame(fault_frame(kind, detail, k)?));

@@ -8,6 +8,7 @@ use scanhil_protocol::message::{FaultKind, NodeState};
 use scanhil_protocol::plant_units::ActuatorPair;
 
 use crate::plant::{Plant, PlantError, PlantEvent, PlantStep};
+use crate::sensor_faults::{SensorFaultCounts, SensorFaultModel};
 
 /// What the node wants sent after an input.
 #[derive(Debug, Clone, PartialEq)]
@@ -19,6 +20,11 @@ pub enum NodeOutput {
     Fault(FaultKind, i32),
 }
 
+/// How far behind the newest command (by its sequence counter) a command counts as late and
+/// is not applied; further behind it is taken as a jump of the counter (a gap), so a corrupted
+/// counter cannot lock the node out of its commands for long.
+pub const LATE_COMMAND_WINDOW: u16 = 64;
+
 /// Counters the node reports at the end of a run.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct NodeCounters {
@@ -28,9 +34,18 @@ pub struct NodeCounters {
     pub commands: u64,
     /// Coil commands whose sequence counter skipped values.
     pub command_gaps: u64,
+    /// Coil commands up to [`LATE_COMMAND_WINDOW`] behind the newest one received (delayed or
+    /// reordered on the way): counted and not applied.
+    pub late_commands: u64,
+    /// Coil commands with the sequence counter of the one before (a duplicate).
+    pub repeated_commands: u64,
+    /// Step frames for the period just stepped (a duplicate, or the host asking again for a
+    /// reading it did not get): answered with the same reading, the plant not stepped.
+    pub repeated_steps: u64,
     /// Periods stepped without a fresh command for them (real time: the controller was late).
     pub stale_periods: u64,
-    /// Step frames whose period counter was not the node's next period.
+    /// Step frames whose period counter was neither the node's next period nor the one just
+    /// stepped (lockstep: not stepped, not answered).
     pub out_of_order_steps: u64,
     /// Frames with a loop id and a malformed payload.
     pub malformed_frames: u64,
@@ -50,6 +65,7 @@ pub struct MirrorNode {
     /// period it lasts.
     active_faults: Vec<FaultKind>,
     counters: NodeCounters,
+    sensor_faults: Option<SensorFaultModel>,
 }
 
 impl MirrorNode {
@@ -64,7 +80,26 @@ impl MirrorNode {
             last_command_seq: None,
             active_faults: Vec::new(),
             counters: NodeCounters::default(),
+            sensor_faults: None,
         }
+    }
+
+    /// The same node, its sensor losing its peak as `faults` says.
+    #[must_use]
+    pub fn with_sensor_faults(mut self, faults: SensorFaultModel) -> MirrorNode {
+        self.sensor_faults = Some(faults);
+        self
+    }
+
+    /// How many sensor samples each declared sensor fault replaced (`None`: none declared).
+    #[must_use]
+    pub fn sensor_fault_counts(&self) -> Option<SensorFaultCounts> {
+        self.sensor_faults.as_ref().map(SensorFaultModel::counts)
+    }
+
+    /// Counts a Step frame for the period just stepped (answered again, not stepped).
+    pub fn on_repeated_step(&mut self) {
+        self.counters.repeated_steps += 1;
     }
 
     /// The node's state.
@@ -101,11 +136,14 @@ impl MirrorNode {
         self.plant.period_index()
     }
 
-    /// Checks a Step frame's period counter (32 bits on the wire) against the next period.
-    pub fn check_step_counter(&mut self, period: u32) {
-        if u64::from(period) != self.next_period() & u64::from(u32::MAX) {
+    /// Checks a Step frame's period counter (32 bits on the wire) against the next period;
+    /// counts and returns false when it is another.
+    pub fn check_step_counter(&mut self, period: u32) -> bool {
+        let next = u64::from(period) == self.next_period() & u64::from(u32::MAX);
+        if !next {
             self.counters.out_of_order_steps += 1;
         }
+        next
     }
 
     /// Counts a frame with a loop id and a malformed payload.
@@ -114,13 +152,21 @@ impl MirrorNode {
     }
 
     /// A coil current command with its 16-bit sequence counter. Non-finite currents are
-    /// refused by the plant at the next step; here they are held like any other command.
+    /// refused by the plant at the next step; here they are held like any other command. A
+    /// command just behind the newest one (by its counter, mod 2^16; up to
+    /// [`LATE_COMMAND_WINDOW`]) is counted, not applied.
     pub fn on_command(&mut self, seq: u16, currents_a: ActuatorPair) {
-        if self
-            .last_command_seq
-            .is_some_and(|last| seq != last.wrapping_add(1))
-        {
-            self.counters.command_gaps += 1;
+        if let Some(last) = self.last_command_seq {
+            match seq.wrapping_sub(last) {
+                0 => self.counters.repeated_commands += 1,
+                1 => {}
+                offset if offset.wrapping_neg() <= LATE_COMMAND_WINDOW => {
+                    // Just behind the newest one (delayed or reordered): not applied.
+                    self.counters.late_commands += 1;
+                    return;
+                }
+                _ => self.counters.command_gaps += 1,
+            }
         }
         self.last_command_seq = Some(seq);
         self.counters.commands += 1;
@@ -149,7 +195,12 @@ impl MirrorNode {
         } else {
             self.command_a
         };
-        let step = self.plant.step(command)?;
+        let mut step = self.plant.step(command)?;
+        if let Some(faults) = &mut self.sensor_faults {
+            step.sensor_samples
+                .iter_mut()
+                .for_each(|sample| faults.apply(sample));
+        }
         self.counters.periods += 1;
         let mut faults: Vec<(FaultKind, i32)> = Vec::new();
         for event in &step.events {

@@ -29,7 +29,9 @@ use scanhil_protocol::link::{CanLink, LinkError, LinkUri, PtyPair};
 
 use crate::plant::Plant;
 use crate::scene::Scene;
+use crate::sensor_faults::SensorFaultModel;
 use mirror_node::MirrorNode;
+use scanhil_protocol::fault_injection::SensorFaults;
 use sensor_port::SensorPort;
 
 /// Status frames per second of loop time unless `serve` is told otherwise.
@@ -68,6 +70,8 @@ pub struct ServeConfig {
     pub heartbeat_hz: f64,
     /// A protocol rule to break on purpose (a conformance test aid; lockstep only).
     pub misbehave: Option<misbehaviour::Misbehaviour>,
+    /// The sensor losing its peak (`None`: never).
+    pub sensor_faults: Option<SensorFaults>,
 }
 
 /// How a serve run ended.
@@ -155,6 +159,11 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
         println_flushed(&ready)?;
         let mut links = ServeLinks { fsm, sensor };
         let mut node = MirrorNode::new(plant);
+        if let Some(faults) = &config.sensor_faults {
+            let rate_hz = scene.sensor.unwrap_or_default().measuring_rate_hz;
+            node =
+                node.with_sensor_faults(SensorFaultModel::new(faults.clone(), scene.seed, rate_hz));
+        }
         let report = match config.timing {
             TimingMode::Lockstep => lockstep::run(&mut node, &mut links, config).await?,
             TimingMode::Realtime => realtime::run(&mut node, &mut links, config).await?,
@@ -168,6 +177,7 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
             "held_coil_currents_a": node.held_command_a(),
             "link": link_summary(&links.fsm),
             "sensor": links.sensor.summary(),
+            "sensor_faults": node.sensor_fault_counts(),
             "timing": report.timing,
             "error": report.error,
         });

@@ -1,0 +1,128 @@
+//! The bounded soak: a million lockstep periods in one process with random faults on both
+//! directions of the mirror's link (drop, delay, duplicate, reorder, bit flip). Every period
+//! completes, the node steps exactly once per period, every frame is either delivered or
+//! accounted for as injected (the transport's own counts against the injector's ledger), and
+//! memory stays flat: the resident set, sampled at 10 %, 50 % and 100 % of the run, grows by
+//! no more than the loop record's own 48 bytes per period (three f64 pairs kept for the
+//! report) plus [`SLACK_BYTES`].
+//!
+//! `cargo test -p scanhil-lab --test soak -- --nocapture` prints the figures.
+
+use std::path::Path;
+
+use scanhil_controller::run::link_faults::FaultsConfig;
+use scanhil_controller::run::scenario::Scenario;
+use scanhil_lab::in_process::run_probed;
+
+/// Periods of the soak.
+const PERIODS: u64 = 1_000_000;
+
+/// Bytes the loop record keeps per period by design: the angle reading, the reference and
+/// the tracking error, each an f64 pair.
+const RECORD_BYTES_PER_PERIOD: u64 = 48;
+
+/// Growth of the resident set allowed beyond the record's (allocator and page granularity).
+const SLACK_BYTES: u64 = 8 << 20;
+
+/// This process's resident set, bytes (Linux `/proc/self/statm`).
+fn resident_bytes() -> u64 {
+    let statm = std::fs::read_to_string("/proc/self/statm").expect("/proc/self/statm");
+    let pages: u64 = statm.split_whitespace().nth(1).unwrap().parse().unwrap();
+    pages * 4096
+}
+
+#[test]
+fn a_million_periods_with_random_faults_lose_no_frame_and_hold_memory_flat() {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenarios/test-loop-small.json");
+    let mut scenario = Scenario::load(&path).unwrap();
+    let period_s = 1.0 / scenario.rig.control_rate_hz;
+    scenario.duration_s = PERIODS as f64 * period_s;
+    let rates = serde_json::json!({
+        "drop_rate": 1e-3, "delay_rate": 5e-4, "delay_periods": 3,
+        "duplicate_rate": 1e-3, "reorder_rate": 5e-4, "bit_flip_rate": 2e-4
+    });
+    scenario.faults = serde_json::from_value::<FaultsConfig>(serde_json::json!({
+        "seed": 2026, "host_to_node": rates, "node_to_host": rates
+    }))
+    .unwrap();
+    scenario.check().unwrap();
+
+    let mut samples: Vec<(u64, u64)> = Vec::new();
+    let outcome = run_probed(&scenario, None, PERIODS / 10, &mut |periods| {
+        if periods == PERIODS / 10 || periods == PERIODS / 2 || periods == PERIODS {
+            samples.push((periods, resident_bytes()));
+        }
+    })
+    .unwrap();
+
+    let record = &outcome.run.record;
+    assert_eq!(record.periods_planned, PERIODS);
+    assert_eq!(record.periods_done, PERIODS, "{:?}", record.stopped_by);
+    assert!(record.stopped_by.is_none());
+    let node = &outcome.run.emulator_summary.as_ref().unwrap()["summary"]["node"];
+    assert_eq!(node["periods"], PERIODS, "the node stepped once per period");
+
+    let faults = outcome.run.frame_faults.as_ref().unwrap();
+    let wire = outcome.wire;
+    for (name, direction, sent, received) in [
+        (
+            "host_to_node",
+            &faults.host_to_node,
+            wire.host_sent,
+            wire.node_received,
+        ),
+        (
+            "node_to_host",
+            &faults.node_to_host,
+            wire.node_sent,
+            wire.host_received,
+        ),
+    ] {
+        let ledger = direction.ledger;
+        println!("{name}: {ledger:?}");
+        assert!(ledger.balances(), "{name}: {ledger:?}");
+        assert_eq!(
+            ledger.offered, sent,
+            "{name}: every frame sent went through the wire"
+        );
+        assert_eq!(
+            ledger.delivered, received,
+            "{name}: every frame passed was received"
+        );
+        for count in [
+            ledger.dropped,
+            ledger.delayed,
+            ledger.duplicated,
+            ledger.reordered,
+            ledger.bit_flipped,
+        ] {
+            assert!(
+                count > 100,
+                "{name}: every kind of fault was injected: {ledger:?}"
+            );
+        }
+    }
+    let counters = outcome.run.mirror_counters;
+    println!(
+        "host: {counters:?}, repeated steps {}; node: {node}",
+        record.repeated_steps
+    );
+    assert!(record.repeated_steps > 0);
+
+    println!("resident set (periods, bytes): {samples:?}");
+    assert_eq!(samples.len(), 3, "{samples:?}");
+    let (first_periods, first_bytes) = samples[0];
+    let (last_periods, last_bytes) = samples[2];
+    let record_growth = (last_periods - first_periods) * RECORD_BYTES_PER_PERIOD;
+    let growth = last_bytes.saturating_sub(first_bytes);
+    println!(
+        "growth from 10 % to 100 %: {:.1} MiB, of which the record's own {:.1} MiB",
+        growth as f64 / f64::from(1 << 20),
+        record_growth as f64 / f64::from(1 << 20)
+    );
+    assert!(
+        growth <= record_growth + SLACK_BYTES,
+        "resident set grew {growth} bytes, the record accounts for {record_growth}"
+    );
+}
