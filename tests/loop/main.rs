@@ -27,3 +27,6 @@ mod rig_alone;
 mod interrupted;
 // The output folder: one scan at a time, no stale files after a re-scan.
 mod out_folder;
+// Real-time options: busy-poll and pinning reported with the wake-up probe and who missed;
+// SCHED_FIFO without the privilege warns and goes on.
+mod realtime_options;

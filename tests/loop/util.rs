@@ -80,8 +80,15 @@ const RUN_LIMIT: std::time::Duration = std::time::Duration::from_secs(180);
 
 /// Runs `scanhil` with `args` and returns its output; kills it and panics after [`RUN_LIMIT`].
 pub fn run_scanhil(args: &[&str]) -> Output {
+    run_scanhil_with(args, |_| {})
+}
+
+/// [`run_scanhil`] with the command set up further by `configure` first (limits, privileges).
+pub fn run_scanhil_with(args: &[&str], configure: impl FnOnce(&mut Command)) -> Output {
     use std::io::Read;
-    let mut child = Command::new(scanhil())
+    let mut command = Command::new(scanhil());
+    configure(&mut command);
+    let mut child = command
         .args(args)
         .env("SCANHIL_EMULATOR", emulator())
         .stdout(std::process::Stdio::piped())
