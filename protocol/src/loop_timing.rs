@@ -191,7 +191,7 @@ mod tests {
     fn each_miss_goes_to_the_side_with_the_larger_delay() {
         let misses = [
             miss(0, Some(1.0)),    // period 0 answers no reading: not a miss
-            miss(5, Some(30e-6)),  // host answered reading 4 in 10 us: node
+            miss(5, Some(45e-6)),  // host answered reading 4 in 10 us: node (55 us in all)
             miss(8, Some(2e-6)),   // host took 60 us over reading 7: host
             miss(9, None),         // the node dropped reading 8: node, unmeasured
             miss(12, Some(5e-6)),  // the host never answered reading 11: host, unmeasured

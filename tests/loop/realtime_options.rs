@@ -5,7 +5,7 @@
 
 use std::os::unix::process::CommandExt;
 
-use crate::util::{fixture, number, report, run_scanhil, run_scanhil_with};
+use crate::util::{number, realtime_scan_args, report, run_scanhil, run_scanhil_with};
 
 /// `CAP_IPC_LOCK` and `CAP_SYS_NICE` (linux/capability.h).
 const CAP_IPC_LOCK: nix::libc::c_ulong = 14;
@@ -54,28 +54,21 @@ fn side_misses(report: &serde_json::Value, side: &str) -> f64 {
 fn a_busy_polling_pinned_scan_reports_its_probes_jitter_and_who_missed() {
     let out = tempfile::tempdir().expect("a temporary folder");
     let two_cpus = std::thread::available_parallelism().is_ok_and(|n| n.get() >= 2);
-    let mut args = vec![
-        "scan",
-        &fixture("scenarios/test-loop-small.json"),
-        "--timing",
-        "realtime",
-        "--busy-poll",
-        "--probe-s",
-        "0.05",
-        "--duration-s",
-        "0.2",
-        "--watchdog-periods",
-        "10000",
-        "--out",
-        out.path().to_str().expect("UTF-8 path"),
-    ]
-    .into_iter()
-    .map(str::to_owned)
-    .collect::<Vec<_>>();
     // Two busy-polling ends on one CPU are refused; on a one-CPU machine neither is pinned.
-    if two_cpus {
-        args.extend(["--cpu", "0", "--emulator-cpu", "1"].map(str::to_owned));
-    }
+    let pinned: &[&str] = if two_cpus {
+        &[
+            "--busy-poll",
+            "--probe-s",
+            "0.05",
+            "--cpu",
+            "0",
+            "--emulator-cpu",
+            "1",
+        ]
+    } else {
+        &["--busy-poll", "--probe-s", "0.05"]
+    };
+    let args = realtime_scan_args(out.path(), "0.2", pinned);
     let args: Vec<&str> = args.iter().map(String::as_str).collect();
     let output = run_scanhil(&args);
     let stderr = String::from_utf8_lossy(&output.stderr);
@@ -154,23 +147,13 @@ fn a_busy_polling_pinned_scan_reports_its_probes_jitter_and_who_missed() {
 #[test]
 fn sched_fifo_without_the_privilege_warns_on_both_ends_and_the_scan_goes_on() {
     let out = tempfile::tempdir().expect("a temporary folder");
+    let args = realtime_scan_args(
+        out.path(),
+        "0.05",
+        &["--sched-fifo-priority", "50", "--probe-s", "0.01"],
+    );
     let output = run_scanhil_with(
-        &[
-            "scan",
-            &fixture("scenarios/test-loop-small.json"),
-            "--timing",
-            "realtime",
-            "--sched-fifo-priority",
-            "50",
-            "--probe-s",
-            "0.01",
-            "--duration-s",
-            "0.05",
-            "--watchdog-periods",
-            "10000",
-            "--out",
-            out.path().to_str().expect("UTF-8 path"),
-        ],
+        &args.iter().map(String::as_str).collect::<Vec<_>>(),
         |command| {
             // SAFETY: between fork and exec the child only makes two system calls per limit,
             // async-signal-safe, touching no memory of the parent.

@@ -300,20 +300,9 @@ impl SlcanPort {
             return Ok(Some(frame));
         }
         let mut buf = [0; READ_CHUNK];
-        loop {
-            match self.line.try_read(&mut buf) {
-                Ok(Some(n)) => {
-                    let events = self.decoder.push(&buf[..n]);
-                    self.absorb(events);
-                }
-                Ok(None) => break,
-                // A hang-up after the peer's last frames: those come first, as with `recv`.
-                Err(error) if !self.frames.is_empty() => {
-                    self.pending_error.get_or_insert(error);
-                    break;
-                }
-                Err(error) => return Err(error),
-            }
+        while let Some(n) = self.line.try_read(&mut buf)? {
+            let events = self.decoder.push(&buf[..n]);
+            self.absorb(events);
         }
         // Device replies to what was just read (the rest goes out with the next call).
         self.line.try_flush_pending(&mut self.pending_tx)?;
