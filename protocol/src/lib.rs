@@ -30,4 +30,6 @@ pub mod link;
 pub mod loop_timing;
 pub mod message;
 pub mod plant_units;
+#[cfg(feature = "links")]
+pub mod scheduling;
 pub mod slcan;

@@ -2,6 +2,9 @@
 //! clock master and the controller answering it): period jitter as min / median / p99 / max of
 //! the measured periods, and the count of overruns (periods whose work missed the deadline).
 //!
+//! Also who missed a deadline: each period the clock master stepped without a fresh command
+//! is attributed to the side whose own timestamps show the larger delay ([`attribute_misses`]).
+//!
 //! Pure arithmetic on durations the caller measured; nothing here reads a clock.
 
 /// Collects measured periods (or answer latencies) and counts overruns.
@@ -82,9 +85,148 @@ impl PeriodRecorder {
     }
 }
 
+/// A period the clock master stepped without a fresh command for it: a missed deadline, with
+/// what the master measured of the reading that command would have answered.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MissedDeadline {
+    /// The period that ran on an old command (its command answers reading `period - 1`).
+    pub period: u64,
+    /// How long after its period's start the master finished sending reading `period - 1`, in
+    /// seconds (the node's delay); `None` when that reading's frames were dropped.
+    pub reading_late_s: Option<f64>,
+}
+
+/// The deadline misses blamed on one side, and by how much that side was late.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+pub struct SideMisses {
+    /// Misses blamed on this side.
+    pub count: u64,
+    /// Of them, misses without a measured delay (the node dropped the reading; the host never
+    /// answered it).
+    pub unmeasured: u64,
+    /// The side's longest delay among its misses, in seconds.
+    pub worst_s: Option<f64>,
+    /// The 99th percentile (nearest rank) of the side's delays among its misses, in seconds.
+    pub p99_s: Option<f64>,
+}
+
+/// Deadline misses split between the sides; `node.count + host.count + link.count == total`.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+pub struct MissAttribution {
+    /// Periods the master stepped without a fresh command (period 0, which no reading
+    /// precedes, is not a miss).
+    pub total: u64,
+    /// The node (clock master) late to send the reading: its delay is the reading's lateness
+    /// after the period start.
+    pub node: SideMisses,
+    /// The host late to send the command: its delay is its answer latency (reading in to
+    /// command out).
+    pub host: SideMisses,
+    /// Neither: the node's and the host's delays add up to less than a period, so the link
+    /// (transfer, and the wake-up of the reader at either end) took the rest; its delay is
+    /// that rest, a lower bound of the round trip's transit.
+    pub link: SideMisses,
+}
+
+/// Blames each miss on a side, each side's delay measured on its own clock: the node's
+/// lateness in sending reading `period - 1` against the host's latency in answering it
+/// (`host_latency_s(reading)`, `None` when the host never answered it). When the two add up to
+/// less than `period_s` the link took the rest; otherwise the side with the larger delay
+/// missed. A dropped reading is the node's; an unanswered one the host's.
+pub fn attribute_misses(
+    misses: &[MissedDeadline],
+    period_s: f64,
+    host_latency_s: impl Fn(u64) -> Option<f64>,
+) -> MissAttribution {
+    let mut node = (SideMisses::default(), PeriodRecorder::default());
+    let mut host = (SideMisses::default(), PeriodRecorder::default());
+    let mut link = (SideMisses::default(), PeriodRecorder::default());
+    for miss in misses {
+        let Some(reading) = miss.period.checked_sub(1) else {
+            continue;
+        };
+        let (side, delay_s) = match (miss.reading_late_s, host_latency_s(reading)) {
+            (None, _) => (&mut node, None),
+            (Some(_), None) => (&mut host, None),
+            (Some(node_s), Some(host_s)) if node_s + host_s < period_s => {
+                (&mut link, Some(period_s - node_s - host_s))
+            }
+            (Some(node_s), Some(host_s)) if node_s >= host_s => (&mut node, Some(node_s)),
+            (Some(_), Some(host_s)) => (&mut host, Some(host_s)),
+        };
+        side.0.count += 1;
+        match delay_s {
+            Some(delay_s) => side.1.record(delay_s),
+            None => side.0.unmeasured += 1,
+        }
+    }
+    let summary = |(mut side, delays): (SideMisses, PeriodRecorder)| {
+        if let Some(stats) = delays.stats(0.0) {
+            side.worst_s = Some(stats.max_s);
+            side.p99_s = Some(stats.p99_s);
+        }
+        side
+    };
+    let (node, host, link) = (summary(node), summary(host), summary(link));
+    MissAttribution {
+        total: node.count + host.count + link.count,
+        node,
+        host,
+        link,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn miss(period: u64, reading_late_s: Option<f64>) -> MissedDeadline {
+        MissedDeadline {
+            period,
+            reading_late_s,
+        }
+    }
+
+    #[test]
+    fn each_miss_goes_to_the_side_with_the_larger_delay() {
+        let misses = [
+            miss(0, Some(1.0)),    // period 0 answers no reading: not a miss
+            miss(5, Some(45e-6)),  // host answered reading 4 in 10 us: node (55 us in all)
+            miss(8, Some(2e-6)),   // host took 60 us over reading 7: host
+            miss(9, None),         // the node dropped reading 8: node, unmeasured
+            miss(12, Some(5e-6)),  // the host never answered reading 11: host, unmeasured
+            miss(20, Some(80e-6)), // node 80 us against host 70 us: node
+            miss(30, Some(10e-6)), // 10 + 15 us of a 50 us period: the link took 25 us
+        ];
+        let host_latency = |reading: u64| match reading {
+            4 => Some(10e-6),
+            7 => Some(60e-6),
+            8 => Some(1.0),
+            19 => Some(70e-6),
+            29 => Some(15e-6),
+            _ => None,
+        };
+        let blame = attribute_misses(&misses, 50e-6, host_latency);
+        assert_eq!(blame.total, 6);
+        assert_eq!(
+            blame.node.count + blame.host.count + blame.link.count,
+            blame.total
+        );
+        assert_eq!((blame.link.count, blame.link.unmeasured), (1, 0));
+        assert!((blame.link.worst_s.unwrap() - 25e-6).abs() < 1e-12);
+        assert_eq!((blame.node.count, blame.node.unmeasured), (3, 1));
+        assert_eq!((blame.host.count, blame.host.unmeasured), (2, 1));
+        assert_eq!(blame.node.worst_s, Some(80e-6));
+        assert_eq!(blame.host.worst_s, Some(60e-6));
+        assert_eq!(blame.host.p99_s, Some(60e-6));
+    }
+
+    #[test]
+    fn no_misses_blame_nobody() {
+        let blame = attribute_misses(&[], 50e-6, |_| Some(1.0));
+        assert_eq!(blame, MissAttribution::default());
+        assert_eq!(blame.node.worst_s, None);
+    }
 
     #[test]
     fn nearest_rank_percentiles_of_one_to_hundred() {

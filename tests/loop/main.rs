@@ -31,3 +31,6 @@ mod killed;
 mod out_folder;
 // Faults declared in a scenario over ptys: injected, detected, reported, nothing lost.
 mod faults;
+// Real-time options: busy-poll and pinning reported with the wake-up probe and who missed;
+// SCHED_FIFO without the privilege warns and goes on.
+mod realtime_options;

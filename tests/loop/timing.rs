@@ -6,8 +6,8 @@
 use std::time::Duration;
 
 use crate::util::{
-    ServedEmulator, decode_candump, fixture, number, recording_grows, report, run_scanhil,
-    scan_against_served_emulator, signal,
+    ServedEmulator, decode_candump, fixture, number, realtime_scan_args, recording_grows, report,
+    run_scanhil, scan_against_served_emulator, signal,
 };
 
 /// Asserts what must hold of one [`PeriodStats`] block at `side` in `report`, whatever the
@@ -38,20 +38,8 @@ fn assert_stats_add_up(report: &serde_json::Value, side: &str, intervals: f64) {
 #[test]
 fn a_realtime_scan_completes_and_its_timing_figures_add_up() {
     let out = tempfile::tempdir().expect("a temporary folder");
-    let output = run_scanhil(&[
-        "scan",
-        &fixture("scenarios/test-loop-small.json"),
-        "--timing",
-        "realtime",
-        "--duration-s",
-        "0.2",
-        // 10 000 periods (0.5 s of ticks on the emulator's side): far above a loaded
-        // machine's hiccups, and the catch-up after one reads the host's queued commands.
-        "--watchdog-periods",
-        "10000",
-        "--out",
-        out.path().to_str().expect("UTF-8 path"),
-    ]);
+    let args = realtime_scan_args(out.path(), "0.2", &[]);
+    let output = run_scanhil(&args.iter().map(String::as_str).collect::<Vec<_>>());
     assert_eq!(
         output.status.code(),
         Some(0),

@@ -78,10 +78,39 @@ pub fn emulator() -> PathBuf {
 /// test fails (a hang must never stall CI).
 const RUN_LIMIT: std::time::Duration = std::time::Duration::from_secs(180);
 
+/// The arguments of a real-time scan of `test-loop-small` for `duration_s` into `out`, then
+/// `extra`. Its watchdog of 10 000 periods (0.5 s of ticks on the emulator's side) is far above
+/// a loaded machine's hiccups, and the catch-up after one reads the host's queued commands.
+pub fn realtime_scan_args(out: &Path, duration_s: &str, extra: &[&str]) -> Vec<String> {
+    let mut args: Vec<String> = [
+        "scan",
+        &fixture("scenarios/test-loop-small.json"),
+        "--timing",
+        "realtime",
+        "--duration-s",
+        duration_s,
+        "--watchdog-periods",
+        "10000",
+        "--out",
+        out.to_str().expect("UTF-8 path"),
+    ]
+    .map(str::to_owned)
+    .to_vec();
+    args.extend(extra.iter().map(|arg| (*arg).to_owned()));
+    args
+}
+
 /// Runs `scanhil` with `args` and returns its output; kills it and panics after [`RUN_LIMIT`].
 pub fn run_scanhil(args: &[&str]) -> Output {
+    run_scanhil_with(args, |_| {})
+}
+
+/// [`run_scanhil`] with the command set up further by `configure` first (limits, privileges).
+pub fn run_scanhil_with(args: &[&str], configure: impl FnOnce(&mut Command)) -> Output {
     use std::io::Read;
-    let mut child = Command::new(scanhil())
+    let mut command = Command::new(scanhil());
+    configure(&mut command);
+    let mut child = command
         .args(args)
         .env("SCANHIL_EMULATOR", emulator())
         .stdout(std::process::Stdio::piped())

@@ -52,6 +52,22 @@ pub struct Args {
     /// `sensor.laser_off=[{"from_s":0.1,"to_s":0.2}]` (repeatable; checked as the file is).
     #[arg(long = "fault", value_name = "KEY=VALUE")]
     faults: Vec<String>,
+    /// Real time: both ends spin on non-blocking reads instead of waiting on readiness.
+    #[arg(long)]
+    busy_poll: bool,
+    /// Real time: pin the host's loop to this CPU, instead of the scenario's.
+    #[arg(long)]
+    cpu: Option<usize>,
+    /// Real time: pin the emulator this scan starts to this CPU, instead of the scenario's.
+    #[arg(long)]
+    emulator_cpu: Option<usize>,
+    /// Real time: both loops under SCHED_FIFO at this priority (1 to 99), memory locked.
+    #[arg(long)]
+    sched_fifo_priority: Option<u8>,
+    /// Real time: each end's wake-up probe before the loop, in seconds, instead of the
+    /// scenario's (0: none).
+    #[arg(long)]
+    probe_s: Option<f64>,
 }
 
 /// The timing modes on the command line.
@@ -83,6 +99,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         lead_in_s: args.lead_in_s,
         no_emulator: args.no_emulator,
         faults: args.faults,
+        busy_poll: args.busy_poll,
+        cpu: args.cpu,
+        emulator_cpu: args.emulator_cpu,
+        sched_fifo_priority: args.sched_fifo_priority,
+        probe_s: args.probe_s,
     };
     let end = run_scan(&scenario, &options)
         .with_context(|| format!("scan {}", args.scenario.display()))?;
@@ -138,5 +159,98 @@ fn summary_text(report: &serde_json::Value, out_dir: &std::path::Path) -> String
     } else if let Some(error) = imaging["feature_error"].as_str() {
         text += &format!("feature height: not measured ({error})\n");
     }
+    if report["timing"]["mode"] == "realtime" {
+        text += &realtime_summary(&report["timing"], &report["scenario"]["timing"]);
+    }
     text + &format!("outputs in {}", out_dir.display())
+}
+
+/// Real time: the settings each end had, its loop jitter beside the wake-up probe, and who
+/// missed deadlines by how much.
+fn realtime_summary(timing: &serde_json::Value, asked: &serde_json::Value) -> String {
+    let micros = |value: &serde_json::Value| {
+        value
+            .as_f64()
+            .map_or_else(|| "-".to_owned(), |s| format!("{:.1} us", s * 1e6))
+    };
+    let three = |stats: &serde_json::Value| {
+        format!(
+            "median {}, p99 {}, max {}",
+            micros(&stats["median_s"]),
+            micros(&stats["p99_s"]),
+            micros(&stats["max_s"])
+        )
+    };
+    let settings = |in_effect: &serde_json::Value, cpu_asked: &serde_json::Value| {
+        let mut parts = Vec::new();
+        match (&in_effect["cpu"], cpu_asked.is_null()) {
+            (serde_json::Value::Null, true) => {}
+            (serde_json::Value::Null, false) => parts.push(format!("CPU {cpu_asked} not granted")),
+            (cpu, _) => parts.push(format!("CPU {cpu}")),
+        }
+        match (
+            &in_effect["sched_fifo_priority"],
+            asked["sched_fifo_priority"].is_null(),
+        ) {
+            (serde_json::Value::Null, true) => parts.push("normal scheduler".to_owned()),
+            (serde_json::Value::Null, false) => parts.push("SCHED_FIFO not granted".to_owned()),
+            (priority, _) => parts.push(format!("SCHED_FIFO {priority}")),
+        }
+        if !asked["sched_fifo_priority"].is_null() {
+            parts.push(if in_effect["memory_locked"] == true {
+                "memory locked".to_owned()
+            } else {
+                "memory not locked".to_owned()
+            });
+        }
+        parts.join(", ")
+    };
+    let mut text = format!(
+        "real time: busy-poll {}; host {}",
+        if asked["busy_poll"] == true {
+            "on"
+        } else {
+            "off"
+        },
+        settings(
+            &timing["controller"]["scheduling"]["in_effect"],
+            &asked["cpu"]
+        ),
+    );
+    let emulator = &timing["emulator"]["scheduling"]["in_effect"];
+    if !emulator.is_null() {
+        text += &format!("; emulator {}", settings(emulator, &asked["emulator_cpu"]));
+    }
+    text.push('\n');
+    let jitter = &timing["jitter_against_probe"];
+    if !jitter.is_null() {
+        text += &format!(
+            "wake-up probe (emulator): {}; loop tick lateness: {} (p99 {}x the probe's, target {}x)\n",
+            three(&jitter["wakeup_probe"]),
+            three(&jitter["loop_tick_lateness"]),
+            jitter["p99_ratio"]
+                .as_f64()
+                .map_or_else(|| "-".to_owned(), |r| format!("{r:.2}")),
+            jitter["target_p99_ratio"],
+        );
+    }
+    let misses = &timing["deadline_misses"];
+    if !misses.is_null() {
+        let side = |name: &str, side: &serde_json::Value| {
+            format!(
+                "{name} {} (worst {}, p99 {})",
+                side["count"],
+                micros(&side["worst_s"]),
+                micros(&side["p99_s"])
+            )
+        };
+        text += &format!(
+            "deadline: missed in {} periods: {}, {}, {}\n",
+            misses["total"],
+            side("node late", &misses["node"]),
+            side("host late", &misses["host"]),
+            side("link (transit at least)", &misses["link"]),
+        );
+    }
+    text
 }

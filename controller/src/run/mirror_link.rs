@@ -131,6 +131,25 @@ impl MirrorLink {
         }
     }
 
+    /// Real time, busy-polling: the next AngleReading if one is already there (other frames
+    /// on the way are filed), without waiting; its period (unwrapped against `expected`) and
+    /// angles.
+    ///
+    /// # Errors
+    /// [`LoopError`] as for [`Self::exchange_lockstep`], but no timeout (the caller keeps time).
+    pub fn try_reading(&mut self, expected: u64) -> Result<Option<(u64, SensingPair)>, LoopError> {
+        let t_s = (expected + 1) as f64 * self.period_s;
+        self.at(t_s);
+        while let Some(frame) = self.port.try_recv()? {
+            if let Some((seq, angles)) = self.classify(&frame, t_s)? {
+                let offset = self.inbox.count_reading(seq, expected);
+                return Ok(Some((expected + u64::from(offset), angles)));
+            }
+            self.at(t_s);
+        }
+        Ok(None)
+    }
+
     /// Real time: answers period `k` with its coil command.
     ///
     /// # Errors

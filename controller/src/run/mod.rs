@@ -99,6 +99,16 @@ pub struct ScanOptions {
     /// Fault overrides `KEY=VALUE` below the scenario's `faults`
     /// ([`link_faults::FaultsConfig::with_override`]), applied in order.
     pub faults: Vec<String>,
+    /// Real time: busy-poll on both ends (only ever turns it on).
+    pub busy_poll: bool,
+    /// Overrides the scenario's host CPU.
+    pub cpu: Option<usize>,
+    /// Overrides the scenario's emulator CPU.
+    pub emulator_cpu: Option<usize>,
+    /// Overrides the scenario's `SCHED_FIFO` priority.
+    pub sched_fifo_priority: Option<u8>,
+    /// Overrides the scenario's wake-up probe duration, s.
+    pub probe_s: Option<f64>,
 }
 
 /// How the scan ended, for the exit status.
@@ -158,6 +168,12 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
                 source,
             })?;
     }
+    let timing = &mut scenario.timing;
+    timing.busy_poll |= options.busy_poll;
+    timing.cpu = options.cpu.or(timing.cpu);
+    timing.emulator_cpu = options.emulator_cpu.or(timing.emulator_cpu);
+    timing.sched_fifo_priority = options.sched_fifo_priority.or(timing.sched_fifo_priority);
+    timing.probe_s = options.probe_s.unwrap_or(timing.probe_s);
     // The overrides pass the same checks as the file.
     scenario.check()?;
     let plan = ScanPlan::new(&scenario)?;
@@ -179,6 +195,10 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
     // Held to the end of the scan: a second scan into this folder is refused meanwhile.
     let _folder = out_folder::OutputFolder::claim(&options.out_dir)?;
 
+    // Real time: this thread runs the loop; it is set up, and the machine's wake-up latency
+    // measured with the same settings, before the links open.
+    let host_scheduling = (scenario.timing.mode == TimingMode::Realtime)
+        .then(|| realtime::HostScheduling::set_up(&scenario.timing, period_s));
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -244,6 +264,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
                 periods,
                 &progress,
                 &mut interrupt,
+                host_scheduling.clone().unwrap_or_default(),
             )
             .await
             .with_lead_in(lead_in_periods),
@@ -366,8 +387,7 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         },
     ];
     if timing.mode == TimingMode::Realtime {
-        emulator_args.push("--duration-s".into());
-        emulator_args.push(plan.duration_s.to_string());
+        emulator_args.extend(realtime::emulator_args(&timing, plan.duration_s));
     }
     if plan.sensor_faults.is_active() {
         emulator_args.push("--sensor-faults".into());

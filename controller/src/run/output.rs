@@ -194,6 +194,14 @@ pub fn write(
             m.grid.ny as f64 * m.grid.pitch_mm,
         )
     }));
+    // Real time: the emulator's list of missed deadlines becomes their attribution.
+    let mut emulator = run.emulator_summary.clone();
+    let verdicts = match (&record.controller_timing, emulator.as_mut()) {
+        (Some(controller), Some(emulator)) => {
+            super::realtime::verdicts(controller, &mut emulator["summary"]["timing"], period_s)
+        }
+        _ => serde_json::Value::Null,
+    };
     let report = serde_json::json!({
         "scenario": {
             "name": scenario.name,
@@ -222,7 +230,9 @@ pub fn write(
         "timing": {
             "mode": scenario.timing.mode,
             "controller": record.controller_timing,
-            "emulator": run.emulator_summary.as_ref().map(|e| e["summary"]["timing"].clone()),
+            "emulator": emulator.as_ref().map(|e| e["summary"]["timing"].clone()),
+            "deadline_misses": verdicts["deadline_misses"],
+            "jitter_against_probe": verdicts["jitter_against_probe"],
         },
         "frame": {
             "start_s": frame.start_s,
@@ -248,7 +258,7 @@ pub fn write(
             "node_events": run.node_events,
         },
         "faults": scenario.faults.is_active().then(|| fault_report(scenario, run, &sensor_counters)),
-        "emulator": run.emulator_summary,
+        "emulator": emulator,
     });
     let text = serde_json::to_string_pretty(&report).context("formatting report.json")?;
     std::fs::write(out_dir.join(REPORT), text + "\n").context("writing report.json")?;

@@ -13,6 +13,7 @@
 use std::path::{Path, PathBuf};
 
 use scanhil_geometry::GeometryModel;
+use scanhil_protocol::scheduling::{self, RealtimeOptions};
 use serde::Deserialize;
 
 use super::lead_in::LeadIn;
@@ -86,6 +87,83 @@ pub struct TimingConfig {
     /// In lockstep, the wall-clock allowance for one answer before a period counts as missed,
     /// in seconds (a debug build on a busy machine needs far more than one period).
     pub lockstep_answer_allowance_s: f64,
+    /// Real time: both ends spin on non-blocking reads instead of waiting on readiness.
+    pub busy_poll: bool,
+    /// Real time: pin the host's loop to this CPU.
+    pub cpu: Option<usize>,
+    /// Real time: pin the emulator this scan starts to this CPU.
+    pub emulator_cpu: Option<usize>,
+    /// Real time: run both loops under `SCHED_FIFO` at this priority (1 to 99), memory locked.
+    pub sched_fifo_priority: Option<u8>,
+    /// Real time: how long each end's wake-up probe runs before the loop, in seconds (0: none).
+    pub probe_s: f64,
+}
+
+/// The longest wake-up probe a scenario may ask for, s.
+pub const MAX_PROBE_S: f64 = 60.0;
+
+impl TimingConfig {
+    /// What the host asks of the OS for its real-time loop.
+    #[must_use]
+    pub fn host_options(&self) -> RealtimeOptions {
+        RealtimeOptions {
+            busy_poll: self.busy_poll,
+            cpu: self.cpu,
+            sched_fifo_priority: self.sched_fifo_priority,
+        }
+    }
+
+    /// What the emulator this scan starts asks of the OS for its real-time loop.
+    #[must_use]
+    pub fn emulator_options(&self) -> RealtimeOptions {
+        RealtimeOptions {
+            cpu: self.emulator_cpu,
+            ..self.host_options()
+        }
+    }
+
+    /// Checks the real-time options: only in real time, a priority within 1 to 99, CPUs
+    /// the machine has, two busy-polling ends on two CPUs, a probe of 0 to 60 s.
+    fn check(&self) -> Result<(), (&'static str, String)> {
+        let asked =
+            self.host_options() != RealtimeOptions::default() || self.emulator_cpu.is_some();
+        if asked && self.mode == TimingMode::Lockstep {
+            return Err((
+                "timing.mode",
+                "busy_poll, cpu, emulator_cpu and sched_fifo_priority apply to real time only \
+                 (`\"mode\": \"realtime\"` or `--timing realtime`)"
+                    .into(),
+            ));
+        }
+        for (options, cpu_field) in [
+            (self.host_options(), "timing.cpu"),
+            (self.emulator_options(), "timing.emulator_cpu"),
+        ] {
+            scheduling::check(&options).map_err(|(field, reason)| match field {
+                "cpu" => (cpu_field, reason),
+                _ => ("timing.sched_fifo_priority", reason),
+            })?;
+        }
+        if self.busy_poll
+            && let (Some(host), Some(emulator)) = (self.cpu, self.emulator_cpu)
+            && host == emulator
+        {
+            return Err((
+                "timing.emulator_cpu",
+                format!(
+                    "CPU {emulator} is also the host's: two busy-polling loops on one CPU take \
+                     turns by time slices, far longer than a period"
+                ),
+            ));
+        }
+        if !(0.0..=MAX_PROBE_S).contains(&self.probe_s) {
+            return Err((
+                "timing.probe_s",
+                format!("{} s is not between 0 and {MAX_PROBE_S} s", self.probe_s),
+            ));
+        }
+        Ok(())
+    }
 }
 
 impl Default for TimingConfig {
@@ -94,6 +172,11 @@ impl Default for TimingConfig {
             mode: TimingMode::Lockstep,
             watchdog_periods: 200,
             lockstep_answer_allowance_s: 0.01,
+            busy_poll: false,
+            cpu: None,
+            emulator_cpu: None,
+            sched_fifo_priority: None,
+            probe_s: 0.5,
         }
     }
 }
@@ -338,6 +421,9 @@ impl Scenario {
                 "must be at least 1".into(),
             ));
         }
+        self.timing
+            .check()
+            .map_err(|(field, reason)| invalid(field, reason))?;
         let allowance = self.timing.lockstep_answer_allowance_s;
         if !(allowance.is_finite() && allowance > 0.0) {
             return Err(invalid(
@@ -404,5 +490,66 @@ impl Scenario {
     #[must_use]
     pub fn truth_scene(&self) -> Option<&Path> {
         self.truth.as_deref().or(self.scene.as_deref())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn realtime() -> TimingConfig {
+        TimingConfig {
+            mode: TimingMode::Realtime,
+            ..TimingConfig::default()
+        }
+    }
+
+    #[test]
+    fn real_time_options_are_checked_and_name_their_field() {
+        let field = |timing: TimingConfig| timing.check().map_err(|(field, _)| field);
+        assert_eq!(field(realtime()), Ok(()));
+        let lockstep_busy = TimingConfig {
+            busy_poll: true,
+            ..TimingConfig::default()
+        };
+        assert_eq!(field(lockstep_busy), Err("timing.mode"));
+        let priority = TimingConfig {
+            sched_fifo_priority: Some(100),
+            ..realtime()
+        };
+        assert_eq!(field(priority), Err("timing.sched_fifo_priority"));
+        let no_such_cpu = TimingConfig {
+            emulator_cpu: Some(usize::MAX),
+            ..realtime()
+        };
+        assert_eq!(field(no_such_cpu), Err("timing.emulator_cpu"));
+        let one_cpu_for_two_spinners = TimingConfig {
+            busy_poll: true,
+            cpu: Some(0),
+            emulator_cpu: Some(0),
+            ..realtime()
+        };
+        assert_eq!(field(one_cpu_for_two_spinners), Err("timing.emulator_cpu"));
+        let probe = TimingConfig {
+            probe_s: -1.0,
+            ..realtime()
+        };
+        assert_eq!(field(probe), Err("timing.probe_s"));
+    }
+
+    #[test]
+    fn the_emulator_gets_its_own_cpu_and_the_shared_settings() {
+        let timing = TimingConfig {
+            busy_poll: true,
+            cpu: Some(0),
+            emulator_cpu: Some(1),
+            sched_fifo_priority: Some(80),
+            ..realtime()
+        };
+        let emulator = timing.emulator_options();
+        assert_eq!(emulator.cpu, Some(1));
+        assert_eq!(timing.host_options().cpu, Some(0));
+        assert!(emulator.busy_poll);
+        assert_eq!(emulator.sched_fifo_priority, Some(80));
     }
 }

@@ -141,6 +141,19 @@ impl SensorLink {
         }
     }
 
+    /// Busy-polling: decodes what the link has now, without waiting.
+    ///
+    /// # Errors
+    /// The link's failure (as [`Self::pump`] returns it).
+    pub fn try_pump(&mut self) -> Result<(), LoopError> {
+        if let SensorLink::Ild(stream) = self {
+            while let Some(cycle) = stream.link.try_recv_cycle()? {
+                stream.log.add(&cycle);
+            }
+        }
+        Ok(())
+    }
+
     /// Reads what is still in flight: until the peer hangs up or nothing arrives for `quiet`;
     /// then writes the rest of the recording.
     ///

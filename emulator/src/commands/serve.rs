@@ -3,11 +3,14 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::Context;
+use anyhow::{Context, bail};
 use scanhil_protocol::fault_injection::SensorFaults;
 
 use scanhil_emulator::serve::misbehaviour::Misbehaviour;
-use scanhil_emulator::serve::{DEFAULT_HEARTBEAT_HZ, ServeConfig, ServeOutcome, TimingMode};
+use scanhil_emulator::serve::{
+    DEFAULT_HEARTBEAT_HZ, DEFAULT_PROBE_S, MAX_PROBE_S, ServeConfig, ServeOutcome, TimingMode,
+};
+use scanhil_protocol::scheduling::{self, RealtimeOptions};
 
 /// Serve the emulated mirror (`--fsm`) and/or sensor (`--sensor`) on real links.
 #[derive(Debug, clap::Args)]
@@ -50,6 +53,18 @@ pub struct Args {
     /// range, occlusion bursts); the samples carry the ILD's error values.
     #[arg(long, value_parser = parse_sensor_faults)]
     sensor_faults: Option<SensorFaults>,
+    /// Real time: spin on non-blocking reads instead of waiting on readiness.
+    #[arg(long)]
+    busy_poll: bool,
+    /// Real time: pin the loop's thread to this CPU.
+    #[arg(long)]
+    cpu: Option<usize>,
+    /// Real time: run the loop under SCHED_FIFO at this priority (1 to 99), memory locked.
+    #[arg(long)]
+    sched_fifo_priority: Option<u8>,
+    /// Real time: run the wake-up probe for this long before the loop, in seconds (0: none).
+    #[arg(long, default_value_t = DEFAULT_PROBE_S)]
+    probe_s: f64,
 }
 
 /// Parses and checks `--sensor-faults` (the field named in the error).
@@ -66,6 +81,23 @@ fn parse_sensor_faults(text: &str) -> Result<SensorFaults, String> {
 /// # Errors
 /// A scene that does not load, a link that does not open, or a plant error.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let realtime = RealtimeOptions {
+        busy_poll: args.busy_poll,
+        cpu: args.cpu,
+        sched_fifo_priority: args.sched_fifo_priority,
+    };
+    if let Err((field, reason)) = scheduling::check(&realtime) {
+        bail!("--{}: {reason}", field.replace('_', "-"));
+    }
+    if !(0.0..=MAX_PROBE_S).contains(&args.probe_s) {
+        bail!(
+            "--probe-s: {} s is not between 0 and {MAX_PROBE_S} s",
+            args.probe_s
+        );
+    }
+    if args.timing == TimingMode::Lockstep && realtime != RealtimeOptions::default() {
+        bail!("--busy-poll, --cpu and --sched-fifo-priority apply to --timing realtime only");
+    }
     let config = ServeConfig {
         scene: args.scene,
         fsm: args.fsm,
@@ -78,6 +110,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         heartbeat_hz: args.heartbeat_hz,
         misbehave: args.misbehave,
         sensor_faults: args.sensor_faults,
+        realtime,
+        probe_s: args.probe_s,
     };
     let outcome = scanhil_emulator::serve::serve(&config).context("serve")?;
     Ok(match outcome {

@@ -22,10 +22,12 @@ pub mod sensor_port;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::time::Duration;
 
 use anyhow::{Context, bail};
 use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{CanLink, LinkError, LinkUri, PtyPair};
+use scanhil_protocol::scheduling::{self, RealtimeOptions};
 
 use crate::plant::Plant;
 use crate::scene::Scene;
@@ -36,6 +38,12 @@ use sensor_port::SensorPort;
 
 /// Status frames per second of loop time unless `serve` is told otherwise.
 pub const DEFAULT_HEARTBEAT_HZ: f64 = 10.0;
+
+/// Real time: how long the wake-up probe runs before the loop unless told otherwise, s.
+pub const DEFAULT_PROBE_S: f64 = 0.5;
+
+/// The longest wake-up probe, s.
+pub const MAX_PROBE_S: f64 = 60.0;
 
 /// Who advances time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -72,6 +80,10 @@ pub struct ServeConfig {
     pub misbehave: Option<misbehaviour::Misbehaviour>,
     /// The sensor losing its peak (`None`: never).
     pub sensor_faults: Option<SensorFaults>,
+    /// Real time: busy-polling, CPU pinning and `SCHED_FIFO` for the loop's thread.
+    pub realtime: RealtimeOptions,
+    /// Real time: how long the wake-up probe runs before the ready line, s (0: not at all).
+    pub probe_s: f64,
 }
 
 /// How a serve run ended.
@@ -137,6 +149,25 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
         .enable_all()
         .build()
         .context("starting the I/O runtime")?;
+    // Real time: the loop's thread is set up, and the machine's wake-up latency measured with
+    // the same settings, before the ready line (the clock starts after it).
+    let scheduling_report = (config.timing == TimingMode::Realtime).then(|| {
+        let in_effect = scheduling::apply(&config.realtime);
+        for warning in &in_effect.warnings {
+            eprintln!("scanhil-emulator: {warning}");
+        }
+        let probe = scheduling::wakeup_probe(
+            Duration::from_secs_f64(plant.period_s()),
+            Duration::from_secs_f64(config.probe_s),
+        );
+        serde_json::json!({
+            "in_effect": in_effect,
+            "wakeup_probe": match probe {
+                Ok(stats) => serde_json::json!(stats),
+                Err(errno) => serde_json::json!({ "error": format!("wake-up probe failed: {errno}") }),
+            },
+        })
+    });
     runtime.block_on(async {
         let mut ready = serde_json::json!({
             "event": "ready",
@@ -164,10 +195,14 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
             node =
                 node.with_sensor_faults(SensorFaultModel::new(faults.clone(), scene.seed, rate_hz));
         }
-        let report = match config.timing {
+        let mut report = match config.timing {
             TimingMode::Lockstep => lockstep::run(&mut node, &mut links, config).await?,
             TimingMode::Realtime => realtime::run(&mut node, &mut links, config).await?,
         };
+        if let (Some(scheduling), Some(timing)) = (scheduling_report, report.timing.as_object_mut())
+        {
+            timing.insert("scheduling".into(), scheduling);
+        }
         let summary = serde_json::json!({
             "event": "summary",
             "outcome": report.outcome,

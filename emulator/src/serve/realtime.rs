@@ -6,14 +6,20 @@
 //! period. Timer resolution in an OS is coarse, so the loop waits for each period start by
 //! yielding to the I/O driver and re-reading the clock (received frames are handled meanwhile).
 //!
-//! Reported: the measured period (tick to tick) as min / median / p99 / max, overruns (a tick
-//! that started more than one period late, so a period was skipped), and stale periods (no
-//! fresh command since the previous tick: the controller missed its deadline).
+//! With busy-polling ([`ServeConfig::realtime`]) the wait spins on non-blocking reads of the
+//! link instead (no readiness, no yielding), for the shortest wake-up at each period start.
+//!
+//! Reported: the measured period (tick to tick) and each tick's lateness after its period start
+//! as min / median / p99 / max, overruns (a tick that started more than one period late, so a
+//! period was skipped), and stale periods (no fresh command since the previous tick: a missed
+//! deadline), each listed with how late this node sent the reading it answers, so the host
+//! can tell which side missed ([`MissedDeadline`]).
 
 use std::time::{Duration, Instant};
 
 use scanhil_protocol::can::CanFrame;
-use scanhil_protocol::loop_timing::PeriodRecorder;
+use scanhil_protocol::link::LinkError;
+use scanhil_protocol::loop_timing::{MissedDeadline, PeriodRecorder};
 use scanhil_protocol::message::{Message, MessageError, NodeState};
 
 use super::lockstep::linger;
@@ -23,6 +29,9 @@ use super::{LoopReport, RunEnd, ServeConfig, ServeLinks, ServeOutcome};
 
 /// How long one period's frames may take to go out before they are dropped.
 const SEND_ALLOWANCE: Duration = Duration::from_millis(2);
+
+/// The most missed deadlines listed one by one in the summary (the rest are only counted).
+const MAX_LISTED_MISSES: usize = 1 << 20;
 
 /// Runs the real-time loop until the duration ends, the controller hangs up or closes the SLCAN
 /// channel, or the watchdog fires (no command for `watchdog_periods` periods once the first one
@@ -41,8 +50,14 @@ pub async fn run(
     let total_periods = config
         .duration_s
         .map(|d| (d / node.plant().period_s()).round() as u64);
-    let mut recorder =
-        PeriodRecorder::with_capacity(total_periods.unwrap_or(0).min(1 << 24) as usize);
+    let capacity = total_periods.unwrap_or(0).min(1 << 24) as usize;
+    let mut recorder = PeriodRecorder::with_capacity(capacity);
+    let mut lateness = PeriodRecorder::with_capacity(capacity);
+    let mut misses: Vec<MissedDeadline> = Vec::new();
+    let mut misses_not_listed = 0u64;
+    // How late the previous tick's reading went out after its period start (`None`: dropped).
+    let mut previous_reading_late_s: Option<f64> = None;
+    let busy_poll = config.realtime.busy_poll;
     let mut last_command_period: Option<u64> = None;
     // When the oldest reading the host has not answered yet went out (wall clock): the
     // host's silence is measured from there, so a node whose sends stretch under a full line
@@ -79,62 +94,33 @@ pub async fn run(
             break;
         }
         let deadline = start + period.saturating_mul(k as u32);
-        // Handle frames until the period starts.
-        loop {
-            let now = Instant::now();
-            if now >= deadline {
-                break;
-            }
-            let received = tokio::select! {
-                frame = links.fsm.recv() => Some(frame),
-                () = tokio::task::yield_now() => None,
-            };
-            match received {
-                None => {}
-                Some(Err(err)) => match RunEnd::from_link_error(&err) {
-                    Some(end) => {
-                        ended_by = end;
-                        break 'ticks;
-                    }
-                    None => return Err(err.into()),
-                },
-                Some(Ok(frame)) => on_frame(
-                    node,
-                    &frame,
-                    k,
-                    &mut last_command_period,
-                    &mut unanswered_since,
-                ),
-            }
-        }
-        // A tick that starts late (catch-up after a stall of this process) never enters the
-        // wait above: read what the host has queued anyway, so its commands count before the
-        // watchdog looks (else a stall of the node alone would look like a silent host).
-        loop {
-            match links.fsm.try_recv() {
-                Ok(None) => break,
-                Ok(Some(frame)) => on_frame(
-                    node,
-                    &frame,
-                    k,
-                    &mut last_command_period,
-                    &mut unanswered_since,
-                ),
-                Err(err) => match RunEnd::from_link_error(&err) {
-                    Some(end) => {
-                        ended_by = end;
-                        break 'ticks;
-                    }
-                    None => return Err(err.into()),
-                },
+        let served = serve_until(
+            links,
+            node,
+            k,
+            deadline,
+            busy_poll,
+            &mut last_command_period,
+            &mut unanswered_since,
+        )
+        .await;
+        if let Err(err) = served {
+            match RunEnd::from_link_error(&err) {
+                Some(end) => {
+                    ended_by = end;
+                    break 'ticks;
+                }
+                None => return Err(err.into()),
             }
         }
         let now = Instant::now();
         if let Some(previous) = last_tick {
             recorder.record((now - previous).as_secs_f64());
         }
+        lateness.record(now.duration_since(deadline).as_secs_f64());
         if now.duration_since(deadline) > period {
             recorder.overrun();
+            lateness.overrun();
         }
         last_tick = Some(now);
         // The watchdog: armed by the first command; fires after `watchdog_periods` ticks
@@ -170,7 +156,19 @@ pub async fn run(
         unanswered_since.get_or_insert(now);
         let mut frames = vec![Message::Sync { step: k as u32 }.encode()?];
         let mut samples = Vec::new();
-        for output in node.step()? {
+        let stale_before = node.counters().stale_periods;
+        let outputs = node.step()?;
+        if node.counters().stale_periods > stale_before && k > 0 {
+            if misses.len() < MAX_LISTED_MISSES {
+                misses.push(MissedDeadline {
+                    period: k,
+                    reading_late_s: previous_reading_late_s,
+                });
+            } else {
+                misses_not_listed += 1;
+            }
+        }
+        for output in outputs {
             match output {
                 NodeOutput::Angles(step) => {
                     frames.push(angle_frame(&step)?);
@@ -191,8 +189,14 @@ pub async fn run(
             links.sensor.emit(&samples, &mut links.fsm).await
         };
         match tokio::time::timeout(SEND_ALLOWANCE, send).await {
-            Ok(result) => result?,
-            Err(_) => dropped_periods += 1,
+            Ok(result) => {
+                result?;
+                previous_reading_late_s = Some(deadline.elapsed().as_secs_f64());
+            }
+            Err(_) => {
+                dropped_periods += 1;
+                previous_reading_late_s = None;
+            }
         }
     }
     let stats = recorder.stats(period.as_secs_f64());
@@ -204,12 +208,60 @@ pub async fn run(
         ended_by,
         timing: serde_json::json!({
             "period_jitter": stats,
+            "tick_lateness": lateness.stats(period.as_secs_f64()),
             "stale_command_periods": stale,
+            "missed_deadlines": misses,
+            "missed_deadlines_not_listed": misses_not_listed,
             "periods_with_dropped_frames": dropped_periods,
             "deadline_held": deadline_held,
         }),
         error,
     })
+}
+
+/// Handles the host's frames until `deadline` (busy-polling: spinning on non-blocking reads;
+/// else yielding to the runtime between reads), then whatever it has queued: a tick that
+/// starts late (catch-up after a stall of this process) never waits, but its host's queued
+/// commands must count before the watchdog looks (else a stall of the node alone would look
+/// like a silent host).
+async fn serve_until(
+    links: &mut ServeLinks,
+    node: &mut MirrorNode,
+    k: u64,
+    deadline: Instant,
+    busy_poll: bool,
+    last_command_period: &mut Option<u64>,
+    unanswered_since: &mut Option<Instant>,
+) -> Result<(), LinkError> {
+    while Instant::now() < deadline {
+        if busy_poll {
+            take_queued(links, node, k, last_command_period, unanswered_since)?;
+            std::hint::spin_loop();
+        } else {
+            let received = tokio::select! {
+                frame = links.fsm.recv() => Some(frame),
+                () = tokio::task::yield_now() => None,
+            };
+            if let Some(frame) = received {
+                on_frame(node, &frame?, k, last_command_period, unanswered_since);
+            }
+        }
+    }
+    take_queued(links, node, k, last_command_period, unanswered_since)
+}
+
+/// Handles every frame the host has queued, without waiting.
+fn take_queued(
+    links: &mut ServeLinks,
+    node: &mut MirrorNode,
+    k: u64,
+    last_command_period: &mut Option<u64>,
+    unanswered_since: &mut Option<Instant>,
+) -> Result<(), LinkError> {
+    while let Some(frame) = links.fsm.try_recv()? {
+        on_frame(node, &frame, k, last_command_period, unanswered_since);
+    }
+    Ok(())
 }
 
 /// Handles one frame from the host during period `k`: a coil command is applied (and marks
