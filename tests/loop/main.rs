@@ -25,5 +25,7 @@ mod timing;
 mod rig_alone;
 // An interrupted scan (Ctrl-C, SIGTERM): zero current, C sent, outputs written, exit 3.
 mod interrupted;
+// A node that stops reading its line: the host's blocked send ends by watchdog or SIGTERM.
+mod stuck_node;
 // The output folder: one scan at a time, no stale files after a re-scan.
 mod out_folder;

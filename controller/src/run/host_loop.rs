@@ -46,6 +46,19 @@ pub enum LoopError {
         /// The wall-clock time waited.
         waited: Duration,
     },
+    /// The node stopped taking frames: a send did not go out within the watchdog's allowance
+    /// (a node that no longer reads its line fills it, and the write would wait forever).
+    #[error(
+        "link timeout on {link}: the frames of period {period} could not be sent within {waited:?} (the node stopped reading)"
+    )]
+    SendTimeout {
+        /// The link.
+        link: String,
+        /// The period whose frames were being sent.
+        period: u64,
+        /// The wall-clock time waited.
+        waited: Duration,
+    },
     /// A node reported a fault that ends the run (its own link timeout).
     #[error("{link}: the {node:?} node reported {kind:?} at step {step} (mod 2^16)")]
     NodeFault {

@@ -9,7 +9,7 @@ use scanhil_protocol::can::CanFrame;
 pub use super::host_loop::LoopRecord;
 use super::host_loop::{Heard, HostAction, HostLoop};
 use super::interrupt::Interrupt;
-use super::mirror_link::{LoopError, MirrorLink};
+use super::mirror_link::{LoopError, MirrorLink, STOP_SEND_ALLOWANCE};
 use super::progress::Progress;
 use super::sensor_link::SensorLink;
 
@@ -30,11 +30,20 @@ pub async fn run(
         let received: Result<CanFrame, LoopError> = match host.next_action() {
             HostAction::Done => break,
             HostAction::Send(frames) => {
-                for frame in &frames {
-                    if let Err(error) = mirror.send_stamped(frame).await {
-                        host.on_error(error);
-                        break;
-                    }
+                // A send may take the watchdog's allowance at most (the node stopped reading
+                // fills the line); a stopping loop's zero command far less.
+                let send_allowance = if host.record().stopped_by.is_some() {
+                    STOP_SEND_ALLOWANCE
+                } else {
+                    allowance
+                };
+                let period = host.record().periods_done;
+                let send_deadline = tokio::time::Instant::now() + send_allowance;
+                if let Err(error) = mirror
+                    .send_within(period, &frames, send_deadline, interrupt)
+                    .await
+                {
+                    host.on_error(error);
                 }
                 // Each wait's allowance starts when its frames went out.
                 deadline = tokio::time::Instant::now() + allowance;

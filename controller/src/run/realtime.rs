@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use scanhil_protocol::loop_timing::{PeriodRecorder, PeriodStats};
 use scanhil_protocol::plant_units::SensingPair;
 
-use super::host_loop::LoopError;
+use super::host_loop::{LoopError, coil_command_frame};
 use super::interrupt::Interrupt;
 use super::lockstep::LoopRecord;
 use super::mirror_link::MirrorLink;
@@ -86,7 +86,18 @@ pub async fn run(
         last_angles = angles;
         let next = j + 1;
         let command = controller.step(trajectory.reference_rad(next as f64 * period_s), angles);
-        if let Err(error) = mirror.send_command(next, command).await {
+        let send_deadline = tokio::time::Instant::now() + mirror.total_allowance();
+        let frame = coil_command_frame(next, command, (next + 1) as f64 * period_s);
+        let sent = match frame {
+            Ok(frame) => {
+                mirror
+                    .send_within(next, &[frame], send_deadline, interrupt)
+                    .await
+            }
+            Err(error) => Err(error),
+        };
+        if let Err(error) = sent {
+            mirror.command_zero(next).await;
             record.stopped_by = Some(error);
             break;
         }
