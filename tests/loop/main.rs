@@ -15,6 +15,8 @@ mod scan_result;
 mod determinism;
 // The sensor's samples on CAN or on the ILD stream: the same scan, the last period included.
 mod sensor_transports;
+// The real-sensor path: no declared clock, the estimate gives the declared clock's scan.
+mod sensor_clock;
 // The controller's watchdog: a frozen or killed emulator stops the scan with a link timeout.
 mod controller_watchdog;
 // Conformance checks against the emulator, with JUnit XML.

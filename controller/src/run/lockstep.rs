@@ -10,6 +10,7 @@ pub use super::host_loop::LoopRecord;
 use super::host_loop::{Heard, HostAction, HostLoop};
 use super::interrupt::Interrupt;
 use super::mirror_link::{LoopError, MirrorLink, STOP_SEND_ALLOWANCE};
+use super::pairing::ArrivalClock;
 use super::progress::Progress;
 use super::sensor_link::SensorLink;
 
@@ -26,6 +27,8 @@ pub async fn run(
 ) -> LoopRecord {
     let allowance = mirror.total_allowance();
     let mut deadline = tokio::time::Instant::now() + allowance;
+    // When each period's frames started going out: lockstep's arrival clock.
+    let mut period_starts = Vec::with_capacity(host.record().periods_planned as usize);
     loop {
         let received: Result<CanFrame, LoopError> = match host.next_action() {
             HostAction::Done => break,
@@ -38,6 +41,9 @@ pub async fn run(
                     allowance
                 };
                 let period = host.record().periods_done;
+                if period == period_starts.len() as u64 {
+                    period_starts.push(tokio::time::Instant::now());
+                }
                 let send_deadline = tokio::time::Instant::now() + send_allowance;
                 if let Err(error) = mirror
                     .send_within(period, &frames, send_deadline, interrupt)
@@ -85,7 +91,11 @@ pub async fn run(
             Err(error) => host.on_error(error),
         }
     }
-    let (record, inbox) = host.finish();
+    let (mut record, inbox) = host.finish();
+    record.arrival_clock = Some(ArrivalClock::Steps {
+        period_s: record.angles.period_s(),
+        sent: period_starts,
+    });
     mirror.restore_inbox(inbox);
     progress.set(record.periods_done);
     record

@@ -14,6 +14,7 @@ use super::host_loop::{LoopError, coil_command_frame};
 use super::interrupt::Interrupt;
 use super::lockstep::LoopRecord;
 use super::mirror_link::MirrorLink;
+use super::pairing::ArrivalClock;
 use super::progress::Progress;
 use super::sensor_link::SensorLink;
 use crate::scan_controller::ScanController;
@@ -65,10 +66,12 @@ pub async fn run(
         let arrival = Instant::now();
         let epoch = tokio::time::Instant::from_std(arrival)
             .checked_sub(Duration::from_secs_f64((j + 1) as f64 * period_s));
-        record.loop_epoch = match (record.loop_epoch, epoch) {
-            (Some(current), Some(candidate)) => Some(current.min(candidate)),
-            (current, candidate) => current.or(candidate),
-        };
+        if let Some(candidate) = epoch {
+            record.arrival_clock = Some(match record.arrival_clock {
+                Some(ArrivalClock::Epoch(current)) => ArrivalClock::Epoch(current.min(candidate)),
+                _ => ArrivalClock::Epoch(candidate),
+            });
+        }
         if let Some(previous) = last_arrival {
             intervals.record((arrival - previous).as_secs_f64());
         }
