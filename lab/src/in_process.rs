@@ -80,6 +80,20 @@ impl InProcessOutcome {
 /// files that do not load or cannot be written, a controller or scene that disagrees with the
 /// rig (as `scanhil scan` refuses them), a plant error.
 pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProcessOutcome> {
+    run_plan(scenario, ScanPlan::new(scenario)?, out_dir)
+}
+
+/// [`run`] with a plan made beforehand: a test can swap the controller that runs for one the
+/// plan (and so the predicted tracking) does not describe, as a controller implementation
+/// that departs from its own model would.
+///
+/// # Errors
+/// As [`run`].
+pub fn run_plan(
+    scenario: &Scenario,
+    plan: ScanPlan,
+    out_dir: Option<&Path>,
+) -> anyhow::Result<InProcessOutcome> {
     if scenario.timing.mode != TimingMode::Lockstep {
         bail!(
             "{}: the in-process loop runs in lockstep only",
@@ -93,7 +107,6 @@ pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProc
         );
     };
     let started = std::time::Instant::now();
-    let plan = ScanPlan::new(scenario)?;
     let periods = plan.periods();
     let ScanPlan {
         mut controller,
