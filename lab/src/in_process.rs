@@ -98,16 +98,31 @@ impl InProcessOutcome {
 /// files that do not load or cannot be written, a controller or scene that disagrees with the
 /// rig (as `scanhil scan` refuses them), a plant error.
 pub fn run(scenario: &Scenario, out_dir: Option<&Path>) -> anyhow::Result<InProcessOutcome> {
-    run_probed(scenario, out_dir, u64::MAX, &mut |_| {})
+    run_plan(scenario, ScanPlan::new(scenario)?, out_dir)
 }
 
-/// [`run`], calling `probe` with the periods done every `every_periods` periods (a soak
+/// [`run`] with a plan made beforehand: a test can swap the controller that runs for one the
+/// plan (and so the predicted tracking) does not describe, as a controller implementation
+/// that departs from its own model would.
+///
+/// # Errors
+/// As [`run`].
+pub fn run_plan(
+    scenario: &Scenario,
+    plan: ScanPlan,
+    out_dir: Option<&Path>,
+) -> anyhow::Result<InProcessOutcome> {
+    run_probed(scenario, plan, out_dir, u64::MAX, &mut |_| {})
+}
+
+/// [`run_plan`], calling `probe` with the periods done every `every_periods` periods (a soak
 /// samples its memory there).
 ///
 /// # Errors
 /// As [`run`].
 pub fn run_probed(
     scenario: &Scenario,
+    plan: ScanPlan,
     out_dir: Option<&Path>,
     every_periods: u64,
     probe: &mut dyn FnMut(u64),
@@ -125,7 +140,6 @@ pub fn run_probed(
         );
     };
     let started = std::time::Instant::now();
-    let plan = ScanPlan::new(scenario)?;
     let periods = plan.periods();
     let ScanPlan {
         mut controller,

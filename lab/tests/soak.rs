@@ -11,6 +11,7 @@
 use std::path::Path;
 
 use scanhil_controller::run::link_faults::FaultsConfig;
+use scanhil_controller::run::plan::ScanPlan;
 use scanhil_controller::run::scenario::Scenario;
 use scanhil_lab::in_process::run_probed;
 
@@ -49,11 +50,17 @@ fn a_million_periods_with_random_faults_lose_no_frame_and_hold_memory_flat() {
     scenario.check().unwrap();
 
     let mut samples: Vec<(u64, u64)> = Vec::new();
-    let outcome = run_probed(&scenario, None, PERIODS / 10, &mut |periods| {
-        if periods == PERIODS / 10 || periods == PERIODS / 2 || periods == PERIODS {
-            samples.push((periods, resident_bytes()));
-        }
-    })
+    let outcome = run_probed(
+        &scenario,
+        ScanPlan::new(&scenario).expect("the soak's plan"),
+        None,
+        PERIODS / 10,
+        &mut |periods| {
+            if periods == PERIODS / 10 || periods == PERIODS / 2 || periods == PERIODS {
+                samples.push((periods, resident_bytes()));
+            }
+        },
+    )
     .unwrap();
 
     let record = &outcome.run.record;

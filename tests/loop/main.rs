@@ -15,6 +15,8 @@ mod scan_result;
 mod determinism;
 // The sensor's samples on CAN or on the ILD stream: the same scan, the last period included.
 mod sensor_transports;
+// The real-sensor path: no declared clock, the estimate gives the declared clock's scan.
+mod sensor_clock;
 // The controller's watchdog: a frozen or killed emulator stops the scan with a link timeout.
 mod controller_watchdog;
 // Conformance checks against the emulator and deliberately non-conforming nodes, with JUnit XML.
@@ -27,6 +29,8 @@ mod rig_alone;
 mod interrupted;
 // A killed scan (SIGKILL): its recording holds whole lines up to the period in flight.
 mod killed;
+// A node that stops reading its line: the host's blocked send ends by watchdog or SIGTERM.
+mod stuck_node;
 // The output folder: one scan at a time, no stale files after a re-scan.
 mod out_folder;
 // Faults declared in a scenario over ptys: injected, detected, reported, nothing lost.

@@ -22,7 +22,7 @@ use scanhil_protocol::message::{
 use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
 use super::host_inbox::{HostInbox, plausible_angles};
-use super::pairing::AngleTrack;
+use super::pairing::{AngleTrack, ArrivalClock};
 use super::power_backoff::{BackoffLog, PowerBackoff};
 use super::realtime::ControllerTiming;
 use super::tracking::TrackingRecorder;
@@ -43,6 +43,19 @@ pub enum LoopError {
         period: u64,
         /// The watchdog's periods.
         periods: u32,
+        /// The wall-clock time waited.
+        waited: Duration,
+    },
+    /// The node stopped taking frames: a send did not go out within the watchdog's allowance
+    /// (a node that no longer reads its line fills it, and the write would wait forever).
+    #[error(
+        "link timeout on {link}: the frames of period {period} could not be sent within {waited:?} (the node stopped reading)"
+    )]
+    SendTimeout {
+        /// The link.
+        link: String,
+        /// The period whose frames were being sent.
+        period: u64,
         /// The wall-clock time waited.
         waited: Duration,
     },
@@ -93,9 +106,10 @@ pub struct LoopRecord {
     pub stopped_by: Option<LoopError>,
     /// Real time only: the controller's side of the timing.
     pub controller_timing: Option<ControllerTiming>,
-    /// Real time only: the instant of loop time 0 as seen here (the earliest reading's
-    /// arrival minus its loop time), to place a real sensor's samples on the loop's time axis.
-    pub loop_epoch: Option<tokio::time::Instant>,
+    /// How arrivals map onto the loop's time axis (real time: the earliest reading's arrival
+    /// minus its loop time; lockstep: when each period started), to place a real sensor's
+    /// samples there. `None` when the loop did not keep it (in process).
+    pub arrival_clock: Option<ArrivalClock>,
     /// What the power back-off did (None: not active).
     pub power_backoff: Option<BackoffLog>,
     /// Step frames sent again because no reading came within one answer allowance.
@@ -116,7 +130,7 @@ impl LoopRecord {
             saturated_in_lead_in: 0,
             stopped_by: None,
             controller_timing: None,
-            loop_epoch: None,
+            arrival_clock: None,
             power_backoff: None,
             repeated_steps: 0,
         }

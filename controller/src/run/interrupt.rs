@@ -31,6 +31,19 @@ impl Interrupt {
         })
     }
 
+    /// Gives the signals back their default action (end the process) once the loop has
+    /// stopped: tokio keeps its handlers installed for the process' life, so without this a
+    /// signal during the wrap-up (closing links, waiting for the emulator, writing outputs)
+    /// would be caught and ignored.
+    pub fn restore_default(self) {
+        use nix::sys::signal::{SigHandler, Signal, signal};
+        for stop in [Signal::SIGINT, Signal::SIGTERM, Signal::SIGHUP] {
+            // SAFETY: the default disposition installs no handler code; tokio's handler,
+            // which only records the signal, is simply no longer called.
+            let _ = unsafe { signal(stop, SigHandler::SigDfl) };
+        }
+    }
+
     /// Waits for the first stopping signal and returns its name.
     pub async fn recv(&mut self) -> &'static str {
         tokio::select! {

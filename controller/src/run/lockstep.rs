@@ -9,7 +9,8 @@ use scanhil_protocol::can::CanFrame;
 pub use super::host_loop::LoopRecord;
 use super::host_loop::{Heard, HostAction, HostLoop};
 use super::interrupt::Interrupt;
-use super::mirror_link::{LoopError, MirrorLink};
+use super::mirror_link::{LoopError, MirrorLink, STOP_SEND_ALLOWANCE};
+use super::pairing::ArrivalClock;
 use super::progress::Progress;
 use super::sensor_link::SensorLink;
 
@@ -36,11 +37,20 @@ pub async fn run(
         allowance
     };
     let mut sent_at = tokio::time::Instant::now();
+    // When each period's frames started going out: lockstep's arrival clock.
+    let mut period_starts = Vec::with_capacity(host.record().periods_planned as usize);
     loop {
         let received: Result<CanFrame, LoopError> = match host.next_action() {
             HostAction::Done => break,
             HostAction::Send(frames) => {
-                if let Err(error) = mirror.send_period(&frames).await {
+                let period = host.record().periods_done;
+                if period == period_starts.len() as u64 {
+                    period_starts.push(tokio::time::Instant::now());
+                }
+                if let Err(error) = mirror
+                    .send_within(period, &frames, send_deadline(&host, allowance), interrupt)
+                    .await
+                {
                     host.on_error(error);
                 }
                 // Each wait's allowance starts when its frames went out.
@@ -64,7 +74,11 @@ pub async fn run(
                     None => continue,
                     Some(Err(_elapsed)) => match host.on_silence() {
                         Some(step) => {
-                            if let Err(error) = mirror.send_stamped(&step).await {
+                            let deadline = send_deadline(&host, allowance);
+                            if let Err(error) = mirror
+                                .send_within(period, &[step], deadline, interrupt)
+                                .await
+                            {
                                 host.on_error(error);
                             }
                             sent_at = tokio::time::Instant::now();
@@ -93,8 +107,23 @@ pub async fn run(
             Err(error) => host.on_error(error),
         }
     }
-    let (record, inbox) = host.finish();
+    let (mut record, inbox) = host.finish();
+    record.arrival_clock = Some(ArrivalClock::Steps {
+        period_s: record.angles.period_s(),
+        sent: period_starts,
+    });
     mirror.restore_inbox(inbox);
     progress.set(record.periods_done);
     record
+}
+
+/// How long a send may take: the watchdog's allowance at most (a node that stopped reading
+/// fills the line), a stopping loop's zero command far less.
+fn send_deadline(host: &HostLoop<'_>, allowance: std::time::Duration) -> tokio::time::Instant {
+    let send_allowance = if host.record().stopped_by.is_some() {
+        STOP_SEND_ALLOWANCE
+    } else {
+        allowance
+    };
+    tokio::time::Instant::now() + send_allowance
 }

@@ -11,7 +11,12 @@ use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 pub use super::host_inbox::{CanDistance, HostInbox, MirrorLinkCounters, NodeEvent};
 pub use super::host_loop::LoopError;
 use super::host_loop::{StampedFrame, coil_command_frame, period_frames};
+use super::interrupt::Interrupt;
 use super::link_faults::{InjectedFrameFaults, LinkFaults};
+
+/// How long the zero command and the channel's close may take on the way out of a stopped
+/// run before they are given up (the node may have stopped reading its line).
+pub const STOP_SEND_ALLOWANCE: Duration = Duration::from_millis(200);
 
 /// The controller's end of the mirror node's link.
 #[derive(Debug)]
@@ -209,9 +214,14 @@ impl MirrorLink {
         }
     }
 
-    /// After a failure: commands zero current (best effort; the link may be gone).
+    /// After a failure: commands zero current (best effort; the link may be gone, or full
+    /// because the node stopped reading: the write is given up after [`STOP_SEND_ALLOWANCE`]).
     pub async fn command_zero(&mut self, k: u64) {
-        let _ = self.send_command(k, ActuatorPair::default()).await;
+        let _ = tokio::time::timeout(
+            STOP_SEND_ALLOWANCE,
+            self.send_command(k, ActuatorPair::default()),
+        )
+        .await;
     }
 
     /// At the end of a session (normal end or error path): closes the link's SLCAN channel
@@ -284,6 +294,33 @@ impl MirrorLink {
         }
         self.port.flush().await?;
         Ok(())
+    }
+
+    /// Sends period `period`'s frames, giving up at `deadline` (the node stopped reading) or
+    /// when a stopping signal comes: a full line never holds the loop past its watchdog or a
+    /// Ctrl-C.
+    ///
+    /// # Errors
+    /// [`LoopError::SendTimeout`], [`LoopError::Interrupted`], link errors.
+    pub async fn send_within(
+        &mut self,
+        period: u64,
+        frames: &[StampedFrame],
+        deadline: tokio::time::Instant,
+        interrupt: &mut Interrupt,
+    ) -> Result<(), LoopError> {
+        let started = tokio::time::Instant::now();
+        let send = self.send_period(frames);
+        tokio::select! {
+            sent = tokio::time::timeout_at(deadline, send) => sent.unwrap_or_else(|_| {
+                Err(LoopError::SendTimeout {
+                    link: self.port.name().to_owned(),
+                    period,
+                    waited: started.elapsed(),
+                })
+            }),
+            signal = interrupt.recv() => Err(LoopError::Interrupted { signal }),
+        }
     }
 
     /// Waits for the next frame, its recording stamped with loop time `t_s` (lockstep).

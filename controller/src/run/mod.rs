@@ -270,13 +270,17 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             .with_lead_in(lead_in_periods),
         };
         progress.finish();
+        // The loop has stopped (coils at zero): from here a signal ends the process at once,
+        // so no wrap-up step can leave a scan that ignores SIGTERM.
+        interrupt.restore_default();
         let can_distances = links.mirror.take_distances();
         let mirror_counters = links.mirror.counters();
         let node_events = links.mirror.events().to_vec();
         let frame_faults = links.mirror.fault_report();
         // Closing the mirror link (`C` on SLCAN) ends the emulator's run; the sensor stream
-        // then drains. A failed close (the node is gone) leaves nothing open.
-        let _ = links.mirror.close().await;
+        // then drains. A failed close (the node is gone) leaves nothing open; a node that
+        // stopped reading cannot take the `C`, so it is given up after a bounded wait.
+        let _ = tokio::time::timeout(mirror_link::STOP_SEND_ALLOWANCE, links.mirror.close()).await;
         links
             .mirror
             .can_link_mut()

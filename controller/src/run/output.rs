@@ -23,7 +23,7 @@ use super::ScanEnd;
 use super::link_faults::InjectedFrameFaults;
 use super::lockstep::LoopRecord;
 use super::mirror_link::{MirrorLinkCounters, NodeEvent};
-use super::pairing::{CounterUnwrapper, SensorClock};
+use super::pairing::{ArrivalClock, CounterUnwrapper, SensorClock};
 use super::plan::PlanSummary;
 use super::scenario::Scenario;
 use super::sensor_link::{CountedSample, ILD_COUNTER_MODULUS, SensorCounters};
@@ -104,9 +104,9 @@ pub fn write(
             }));
             std::borrow::Cow::Owned(counted)
         };
-    let clock = match (clock, record.loop_epoch) {
+    let clock = match (clock, &record.arrival_clock) {
         (Some(declared), _) => declared,
-        (None, Some(epoch)) => estimate_sensor_clock(&counted, epoch, measuring_rate_hz),
+        (None, Some(arrivals)) => estimate_sensor_clock(&counted, arrivals, measuring_rate_hz),
         (None, None) => SensorClock {
             measuring_rate_hz,
             counter_zero_s: 0.0,
@@ -319,23 +319,19 @@ fn fault_report(
     })
 }
 
-/// A sensor's clock estimated from arrival times (real time, a real sensor): a sample arrives
-/// after it was measured, so the earliest `arrival - counter / rate` on the loop's time axis
-/// (whose epoch the angle readings fixed the same way) bounds counter 0's instant from above,
-/// within the line's transmission time.
+/// A sensor's clock estimated from arrival times (a real sensor, which declares none): a
+/// sample arrives after it was measured, so the earliest `arrival - counter / rate` on the
+/// loop's time axis ([`ArrivalClock`]) bounds counter 0's instant from above: within the
+/// line's transmission time in real time, within one control period in lockstep (loop time
+/// is known there only to the period the sample arrived in).
 fn estimate_sensor_clock(
     samples: &[CountedSample],
-    loop_epoch: tokio::time::Instant,
+    arrivals: &ArrivalClock,
     measuring_rate_hz: f64,
 ) -> SensorClock {
     let counter_zero_s = samples
         .iter()
-        .map(|s| {
-            s.arrived
-                .saturating_duration_since(loop_epoch)
-                .as_secs_f64()
-                - s.counter as f64 / measuring_rate_hz
-        })
+        .map(|s| arrivals.loop_time_s(s.arrived) - s.counter as f64 / measuring_rate_hz)
         .fold(f64::INFINITY, f64::min);
     SensorClock {
         measuring_rate_hz,
@@ -472,6 +468,7 @@ mod tests {
     use scanhil_protocol::ild::IldValue;
 
     use super::estimate_sensor_clock;
+    use crate::run::pairing::ArrivalClock;
     use crate::run::sensor_link::CountedSample;
 
     const RATE_HZ: f64 = 20_000.0;
@@ -525,7 +522,7 @@ mod tests {
         ] {
             let clock = estimate_sensor_clock(
                 &samples(epoch, zero_s, first, 4000, jitter_s),
-                epoch,
+                &ArrivalClock::Epoch(epoch),
                 RATE_HZ,
             );
             assert_eq!(clock.measuring_rate_hz, RATE_HZ);
@@ -548,14 +545,18 @@ mod tests {
                 sample.arrived += Duration::from_millis(1);
             }
         }
-        let clock = estimate_sensor_clock(&all, epoch, RATE_HZ);
+        let clock = estimate_sensor_clock(&all, &ArrivalClock::Epoch(epoch), RATE_HZ);
         let error = clock.counter_zero_s - 0.02;
         assert!((-1e-9..=TRANSMISSION_S + 1e-9).contains(&error), "{error}");
     }
 
     #[test]
     fn no_samples_give_counter_zero_at_the_epoch() {
-        let clock = estimate_sensor_clock(&[], tokio::time::Instant::now(), RATE_HZ);
+        let clock = estimate_sensor_clock(
+            &[],
+            &ArrivalClock::Epoch(tokio::time::Instant::now()),
+            RATE_HZ,
+        );
         assert_eq!(clock.counter_zero_s, 0.0);
     }
 }

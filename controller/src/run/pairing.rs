@@ -23,6 +23,37 @@ impl SensorClock {
     }
 }
 
+/// Where a wall-clock arrival lies on the loop's time axis, to estimate a sensor clock that
+/// nobody declared (a real sensor): an upper bound of the loop time of anything measured
+/// before that arrival.
+#[derive(Debug, Clone, PartialEq)]
+pub enum ArrivalClock {
+    /// Real time: loop time runs with the wall clock from this instant (loop time 0).
+    Epoch(tokio::time::Instant),
+    /// Lockstep: loop time is virtual and advances one period per Step. `sent[k]` is when
+    /// period `k`'s frames started going out; the node measures period `k` only after that,
+    /// so anything that arrived after `sent[k]` may stand for loop time up to `(k + 1)` periods.
+    Steps {
+        /// The control period, s.
+        period_s: f64,
+        /// Per period, the instant its frames started going out.
+        sent: Vec<tokio::time::Instant>,
+    },
+}
+
+impl ArrivalClock {
+    /// The loop time an arrival at `arrived` bounds from above, s.
+    #[must_use]
+    pub fn loop_time_s(&self, arrived: tokio::time::Instant) -> f64 {
+        match self {
+            ArrivalClock::Epoch(epoch) => arrived.saturating_duration_since(*epoch).as_secs_f64(),
+            ArrivalClock::Steps { period_s, sent } => {
+                sent.partition_point(|started| *started <= arrived) as f64 * period_s
+            }
+        }
+    }
+}
+
 /// Unwraps a counter that wraps at `modulus` (the ILD's 18-bit measured-value counter, a CAN
 /// sequence counter) into a monotonic count, and counts the values that went missing.
 #[derive(Debug, Clone)]
@@ -165,6 +196,24 @@ mod tests {
         assert_eq!(track.at(1.0).map(|p| p.alpha), Some(2.0));
         assert!(track.at(0.25).is_none());
         assert!(track.at(1.25).is_none());
+    }
+
+    #[test]
+    fn lockstep_arrivals_count_the_periods_started_before_them() {
+        let start = tokio::time::Instant::now();
+        let at = |us: u64| start + std::time::Duration::from_micros(us);
+        let clock = ArrivalClock::Steps {
+            period_s: 0.5,
+            sent: vec![at(0), at(10), at(20)],
+        };
+        // Before any period started: loop time 0; after period 1 started: the end of period 1.
+        assert_eq!(
+            clock.loop_time_s(start - std::time::Duration::from_micros(1)),
+            0.0
+        );
+        assert_eq!(clock.loop_time_s(at(15)), 1.0);
+        assert_eq!(clock.loop_time_s(at(20)), 1.5);
+        assert_eq!(clock.loop_time_s(at(99)), 1.5);
     }
 
     #[test]

@@ -20,10 +20,11 @@ use scanhil_protocol::loop_timing::{
 use scanhil_protocol::plant_units::SensingPair;
 use scanhil_protocol::scheduling::{self, InEffect};
 
-use super::host_loop::LoopError;
+use super::host_loop::{LoopError, coil_command_frame};
 use super::interrupt::Interrupt;
 use super::lockstep::LoopRecord;
 use super::mirror_link::MirrorLink;
+use super::pairing::ArrivalClock;
 use super::progress::Progress;
 use super::scenario::TimingConfig;
 use super::sensor_link::SensorLink;
@@ -212,10 +213,12 @@ pub async fn run(
         let arrival = Instant::now();
         let epoch = tokio::time::Instant::from_std(arrival)
             .checked_sub(Duration::from_secs_f64((j + 1) as f64 * period_s));
-        record.loop_epoch = match (record.loop_epoch, epoch) {
-            (Some(current), Some(candidate)) => Some(current.min(candidate)),
-            (current, candidate) => current.or(candidate),
-        };
+        if let Some(candidate) = epoch {
+            record.arrival_clock = Some(match record.arrival_clock {
+                Some(ArrivalClock::Epoch(current)) => ArrivalClock::Epoch(current.min(candidate)),
+                _ => ArrivalClock::Epoch(candidate),
+            });
+        }
         if let Some(previous) = last_arrival {
             intervals.record((arrival - previous).as_secs_f64());
         }
@@ -233,7 +236,18 @@ pub async fn run(
         last_angles = angles;
         let next = j + 1;
         let command = controller.step(trajectory.reference_rad(next as f64 * period_s), angles);
-        if let Err(error) = mirror.send_command(next, command).await {
+        let send_deadline = tokio::time::Instant::now() + mirror.total_allowance();
+        let frame = coil_command_frame(next, command, (next + 1) as f64 * period_s);
+        let sent = match frame {
+            Ok(frame) => {
+                mirror
+                    .send_within(next, &[frame], send_deadline, interrupt)
+                    .await
+            }
+            Err(error) => Err(error),
+        };
+        if let Err(error) = sent {
+            mirror.command_zero(next).await;
             record.stopped_by = Some(error);
             break;
         }
