@@ -10,6 +10,7 @@
 //! nearest face crossing ([`face`] explains why that is exact).
 
 pub mod bounds;
+pub mod cell_grid;
 pub mod duplo;
 pub mod face;
 pub mod height_map;
@@ -602,6 +603,7 @@ mod tests {
             for face in faces {
                 match face {
                     Face::Group { faces, .. } => open(faces, into),
+                    Face::Grid(grid) => open(grid.faces(), into),
                     other => into.push(other.clone()),
                 }
             }

@@ -31,17 +31,30 @@ impl Aabb {
         }
     }
 
-    /// Whether the ray `origin + t dir` meets the box for some `t` in `[t_min, t_max]`
-    /// (slab test; a zero direction component keeps the ray in that slab or out of it).
+    /// Whether the ray `origin + t dir` meets the box for some `t` in `[t_min, t_max]`.
     #[must_use]
     pub fn meets(&self, origin: &Point3<f64>, dir: &Vector3<f64>, t_min: f64, t_max: f64) -> bool {
+        self.span(origin, dir, t_min, t_max).is_some()
+    }
+
+    /// The part `[enter, exit]` of `[t_min, t_max]` in which the ray `origin + t dir` is in
+    /// the box, `None` if it never is (slab test; a zero direction component keeps the ray in
+    /// that slab or out of it).
+    #[must_use]
+    pub fn span(
+        &self,
+        origin: &Point3<f64>,
+        dir: &Vector3<f64>,
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<(f64, f64)> {
         let (mut enter, mut exit) = (t_min, t_max);
         for axis in 0..3 {
             let (o, d) = (origin[axis], dir[axis]);
             let (lo, hi) = (self.min[axis], self.max[axis]);
             if d == 0.0 {
                 if o < lo || o > hi {
-                    return false;
+                    return None;
                 }
                 continue;
             }
@@ -50,10 +63,10 @@ impl Aabb {
             enter = enter.max(near);
             exit = exit.min(far);
             if enter > exit {
-                return false;
+                return None;
             }
         }
-        true
+        Some((enter, exit))
     }
 }
 

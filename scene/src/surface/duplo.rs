@@ -18,6 +18,7 @@
 use nalgebra::{Point3, Vector3};
 
 use super::bounds::Aabb;
+use super::cell_grid::CellGrid;
 use super::face::Face;
 
 /// Stud pitch, mm.
@@ -48,9 +49,9 @@ pub fn stud_centers() -> Vec<[f64; 2]> {
 
 /// The brick's faces in its local frame, and the table under it when `table` is set.
 ///
-/// The brick's faces are grouped in its bounding box and each stud's in its own, so a ray
-/// tests a stud only when it passes near it (the answer is the flat list's, see
-/// [`Face::Group`]).
+/// The brick's faces are grouped in its bounding box, the studs in a grid of one cell per
+/// stud, each stud's faces in its own box, so a ray tests a stud only when it passes near it
+/// (the answer is the flat list's, see [`Face::Group`]).
 #[must_use]
 pub fn faces(table: bool) -> Vec<Face> {
     let (hw, hl, h) = (BODY_WIDTH_MM / 2.0, BODY_LENGTH_MM / 2.0, BODY_HEIGHT_MM);
@@ -77,7 +78,14 @@ pub fn faces(table: bool) -> Vec<Face> {
         side(Vector3::y(), Vector3::x(), hw, hl),
         side(-Vector3::y(), Vector3::x(), hw, hl),
     ];
-    brick.extend(stud_centers().into_iter().map(stud));
+    let half_grid = |n: usize| n as f64 * PITCH_MM / 2.0;
+    brick.push(Face::Grid(Box::new(CellGrid::new(
+        [-half_grid(STUDS.0), -half_grid(STUDS.1)],
+        PITCH_MM,
+        STUDS,
+        (0.0, STUD_HEIGHT_MM),
+        stud_centers().into_iter().map(stud).collect(),
+    ))));
     let mut faces = vec![Face::Group {
         bounds: Aabb::around(
             Point3::new(-hw, -hl, -h),

@@ -11,6 +11,7 @@
 use nalgebra::{Point3, Vector3};
 
 use super::bounds::Aabb;
+use super::cell_grid::CellGrid;
 use super::height_map::HeightField;
 
 /// Nearest distance along a ray that counts as a hit; smaller ones are the ray's own start
@@ -92,6 +93,8 @@ pub enum Face {
         /// The faces, in order (the earlier wins a tie).
         faces: Vec<Face>,
     },
+    /// Faces in a uniform x-y grid, tested only in the cells the ray crosses.
+    Grid(Box<CellGrid>),
 }
 
 impl Face {
@@ -187,20 +190,26 @@ impl Face {
                 .meets(origin, dir, T_MIN_MM, t_max)
                 .then(|| nearest_hit(faces, origin, dir, t_max))
                 .flatten(),
+            Face::Grid(grid) => nearest_hit(
+                grid.faces_along(origin, dir, T_MIN_MM, t_max),
+                origin,
+                dir,
+                t_max,
+            ),
         }
     }
 }
 
 /// The nearest crossing of the ray with any of `faces` (the earliest face on a tie).
 #[must_use]
-pub fn nearest_hit(
-    faces: &[Face],
+pub fn nearest_hit<'a>(
+    faces: impl IntoIterator<Item = &'a Face>,
     origin: &Point3<f64>,
     dir: &Vector3<f64>,
     t_max: f64,
 ) -> Option<Hit> {
     faces
-        .iter()
+        .into_iter()
         .filter_map(|f| f.intersect(origin, dir, t_max))
         .min_by(|a, b| a.t_mm.total_cmp(&b.t_mm))
 }
