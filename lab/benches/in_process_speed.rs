@@ -9,7 +9,9 @@
 //! - `duplo_spot7`: the same with the scene's 7-ray spot (the fixture as shipped).
 //!
 //! No output folder is written: what is timed is the loop (host, in-memory link, node, plant).
-//! Each case runs [`RUNS`] times; the median wall time is reported. As the machine's own
+//! Each case runs [`RUNS`] times; the median wall time is reported, and the median CPU time
+//! of the process beside it (on a loaded machine the wall time also counts the time other
+//! processes had the core; the CPU time does not). As the machine's own
 //! floor, the same number of periods of `Plant::step` alone (the emulated plant without host,
 //! controller or protocol) is timed in the same run, and each case is reported against it.
 //! Writes JSON to stdout and to `target/in_process_speed.json`.
@@ -98,20 +100,37 @@ fn scenario(case: &Case, dir: &Path) -> anyhow::Result<Scenario> {
     Ok(scenario)
 }
 
-fn median(mut values: Vec<f64>) -> f64 {
-    values.sort_by(f64::total_cmp);
-    values[values.len() / 2]
+/// The process's CPU time so far, s.
+fn cpu_s() -> anyhow::Result<f64> {
+    let time = nix::time::clock_gettime(nix::time::ClockId::CLOCK_PROCESS_CPUTIME_ID)?;
+    Ok(time.tv_sec() as f64 + time.tv_nsec() as f64 * 1e-9)
 }
 
-/// Wall seconds of `periods` bare plant steps of `scene` with a constant small command.
-fn plant_floor_s(scene: &Path, seed: u64, periods: u64) -> anyhow::Result<f64> {
+/// `work` run [`RUNS`] times: its last result, and the median wall and CPU seconds.
+fn median_timed<T>(mut work: impl FnMut() -> anyhow::Result<T>) -> anyhow::Result<(T, f64, f64)> {
+    let (mut walls, mut cpus, mut out) = (Vec::new(), Vec::new(), None);
+    for _ in 0..RUNS {
+        let (wall, cpu) = (Instant::now(), cpu_s()?);
+        out = Some(work()?);
+        walls.push(wall.elapsed().as_secs_f64());
+        cpus.push(cpu_s()? - cpu);
+    }
+    let median = |mut values: Vec<f64>| {
+        values.sort_by(f64::total_cmp);
+        values[values.len() / 2]
+    };
+    let out = out.ok_or_else(|| anyhow::anyhow!("no run"))?;
+    Ok((out, median(walls), median(cpus)))
+}
+
+/// `periods` bare plant steps of `scene` with a constant small command.
+fn plant_alone(scene: &Path, seed: u64, periods: u64) -> anyhow::Result<()> {
     let (_, mut plant) = load_plant(scene, Some(seed))?;
     let command = ActuatorPair { a: 0.05, b: -0.05 };
-    let start = Instant::now();
     for _ in 0..periods {
         std::hint::black_box(plant.step(std::hint::black_box(command))?);
     }
-    Ok(start.elapsed().as_secs_f64())
+    Ok(())
 }
 
 fn main() -> anyhow::Result<()> {
@@ -133,34 +152,25 @@ fn main() -> anyhow::Result<()> {
         .filter(|case| chosen.is_empty() || chosen.iter().any(|c| c == case.name))
     {
         let scenario = scenario(case, dir.path())?;
-        let mut walls = Vec::new();
-        let mut simulated_s = 0.0;
-        let mut periods = 0;
-        for _ in 0..RUNS {
-            let start = Instant::now();
-            let outcome = scanhil_lab::in_process::run(&scenario, None)?;
-            walls.push(start.elapsed().as_secs_f64());
-            let record = &outcome.run.record;
-            periods = record.periods_done;
-            simulated_s = periods as f64 / scenario.rig.control_rate_hz;
-        }
-        let wall_s = median(walls);
+        let (outcome, wall_s, cpu_s) =
+            median_timed(|| scanhil_lab::in_process::run(&scenario, None))?;
+        let periods = outcome.run.record.periods_done;
+        let simulated_s = periods as f64 / scenario.rig.control_rate_hz;
         let scene = scenario.scene.as_deref().unwrap_or(Path::new(""));
-        let floor_s = median(
-            (0..RUNS)
-                .map(|_| plant_floor_s(scene, scenario.seed, periods))
-                .collect::<anyhow::Result<Vec<_>>>()?,
-        );
+        let ((), plant_wall_s, plant_cpu_s) =
+            median_timed(|| plant_alone(scene, scenario.seed, periods))?;
         rows.push(serde_json::json!({
             "case": case.name,
             "periods": periods,
             "simulated_s": simulated_s,
             "wall_s": wall_s,
+            "cpu_s": cpu_s,
             "real_time_multiple": simulated_s / wall_s,
-            "ns_per_period": wall_s * 1e9 / periods as f64,
-            "plant_alone_wall_s": floor_s,
-            "plant_alone_real_time_multiple": simulated_s / floor_s,
-            "loop_over_plant_alone": wall_s / floor_s,
+            "real_time_multiple_cpu": simulated_s / cpu_s,
+            "cpu_ns_per_period": cpu_s * 1e9 / periods as f64,
+            "plant_alone_cpu_ns_per_period": plant_cpu_s * 1e9 / periods as f64,
+            "plant_alone_real_time_multiple": simulated_s / plant_wall_s,
+            "loop_over_plant_alone_cpu": cpu_s / plant_cpu_s,
         }));
     }
     let json = serde_json::to_string_pretty(&serde_json::json!({ "runs": RUNS, "cases": rows }))?;
