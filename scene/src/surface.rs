@@ -9,6 +9,8 @@
 //! Every shape is a set of [`Face`]s bounding solids seen from above; the first hit is the
 //! nearest face crossing ([`face`] explains why that is exact).
 
+pub mod bounds;
+pub mod cell_grid;
 pub mod duplo;
 pub mod face;
 pub mod height_map;
@@ -386,11 +388,7 @@ impl Surface {
             ),
             None => (*origin_mm, unit),
         };
-        let hit = self
-            .faces
-            .iter()
-            .filter_map(|f| f.intersect(&origin, &dir, t_max_mm))
-            .min_by(|a, b| a.t_mm.total_cmp(&b.t_mm))?;
+        let hit = face::nearest_hit(&self.faces, &origin, &dir, t_max_mm)?;
         Some(match &self.placement {
             Some(p) => Hit {
                 t_mm: hit.t_mm,
@@ -596,6 +594,105 @@ mod tests {
             (s.height_at(-8.0 + 4.0, 8.0).unwrap() - (-130.0 + duplo::STUD_HEIGHT_MM)).abs() < 1e-9
         );
         assert!((s.height_at(-8.0, 8.0).unwrap() + 130.0).abs() < 1e-9);
+    }
+
+    /// The same surface with every group opened: the flat face list (the intersection before
+    /// faces were grouped), the oracle for the grouped one.
+    fn flat(surface: &Surface) -> Surface {
+        fn open(faces: &[Face], into: &mut Vec<Face>) {
+            for face in faces {
+                match face {
+                    Face::Group { faces, .. } => open(faces, into),
+                    Face::Grid(grid) => open(grid.faces(), into),
+                    other => into.push(other.clone()),
+                }
+            }
+        }
+        let mut faces = Vec::new();
+        open(&surface.faces, &mut faces);
+        assert!(faces.len() > surface.faces.len(), "nothing was grouped");
+        Surface {
+            faces,
+            ..surface.clone()
+        }
+    }
+
+    fn rotated_duplo() -> Surface {
+        build(r#"{"kind": "duplo_2x4", "rotation_deg": 33.0, "center_x_mm": 1.5}"#)
+    }
+
+    #[test]
+    fn grouped_duplo_answers_as_its_flat_faces_on_a_fine_grid_and_on_its_edges() {
+        let (hw, hl) = (duplo::BODY_WIDTH_MM / 2.0, duplo::BODY_LENGTH_MM / 2.0);
+        let r = [
+            duplo::STUD_BORE_DIAMETER_MM / 2.0,
+            duplo::STUD_OUTER_DIAMETER_MM / 2.0,
+        ];
+        // Local x and y where faces end: the body's sides, each stud's walls.
+        let mut edges_x = vec![-hw, hw];
+        let mut edges_y = vec![-hl, hl];
+        for [x, y] in duplo::stud_centers() {
+            for r in r {
+                edges_x.extend([x - r, x + r]);
+                edges_y.extend([y - r, y + r]);
+            }
+        }
+        let grid = (0..420).map(|k| -42.0 + 0.2 * f64::from(k));
+        for surface in [build_cached(), rotated_duplo()] {
+            let oracle = flat(&surface);
+            let local = |x: f64, y: f64| match &surface.placement {
+                Some(p) => Point3::from(p.rotation * Vector3::new(x, y, 0.0) + p.translation),
+                None => Point3::new(x, y, 0.0),
+            };
+            let mut rays: Vec<(Point3<f64>, Vector3<f64>)> = Vec::new();
+            for x in grid.clone() {
+                for y in grid.clone() {
+                    rays.push((Point3::new(x, y - 10.0, 0.0), DOWN));
+                    rays.push((Point3::new(x, y, 0.0), Vector3::new(0.01, -0.02, -1.0)));
+                }
+            }
+            for &x in &edges_x {
+                for &y in &edges_y {
+                    for (dx, dy) in [(0.0, 0.0), (1e-12, 0.0), (0.0, -1e-12)] {
+                        let p = local(x + dx, y + dy);
+                        rays.push((Point3::new(p.x, p.y, 0.0), DOWN));
+                    }
+                }
+            }
+            for (origin, dir) in rays {
+                assert_eq!(
+                    surface.first_hit(&origin, &dir, f64::INFINITY),
+                    oracle.first_hit(&origin, &dir, f64::INFINITY),
+                    "{origin:?} {dir:?}"
+                );
+            }
+        }
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn grouped_duplo_answers_as_its_flat_faces_for_any_ray(
+            ox in -50.0..50.0f64, oy in -70.0..50.0f64, oz in -160.0..10.0f64,
+            dx in -1.0..1.0f64, dy in -1.0..1.0f64, dz in -1.0..1.0f64,
+            t_max in proptest::prop_oneof![proptest::strategy::Just(f64::INFINITY), 0.0..200.0f64],
+            bounce in proptest::bool::ANY,
+        ) {
+            for surface in [build_cached(), rotated_duplo()] {
+                let oracle = flat(&surface);
+                let origin = Point3::new(ox, oy, oz);
+                let dir = Vector3::new(dx, dy, dz);
+                let hit = surface.first_hit(&origin, &dir, t_max);
+                proptest::prop_assert_eq!(hit, oracle.first_hit(&origin, &dir, t_max));
+                // A second path starting on the surface (as a reflection does).
+                if let (true, Some(h)) = (bounce, hit) {
+                    let out = Vector3::new(dy, dz, dx.abs() + 0.1);
+                    proptest::prop_assert_eq!(
+                        surface.first_hit(&h.point_mm, &out, t_max),
+                        oracle.first_hit(&h.point_mm, &out, t_max)
+                    );
+                }
+            }
+        }
     }
 
     #[test]

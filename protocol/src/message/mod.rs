@@ -509,34 +509,30 @@ impl Message {
     }
 
     /// The raw field values in the spec's signal order.
-    fn raw(&self) -> Vec<i64> {
+    fn raw(&self) -> Fields {
         match self {
-            Message::Fault(f) => vec![
+            Message::Fault(f) => Fields::of(&[&[
                 i64::from(f.node.code()),
                 i64::from(f.kind.code()),
                 i64::from(f.detail),
                 i64::from(f.step),
-            ],
-            Message::Sync { step } | Message::Step { step } => vec![i64::from(*step)],
-            Message::CoilCommand(c) => c.raw().to_vec(),
-            Message::AngleReading(a) => a.raw().to_vec(),
-            Message::Distance(d) => d.raw().to_vec(),
+            ]]),
+            Message::Sync { step } | Message::Step { step } => Fields::of(&[&[i64::from(*step)]]),
+            Message::CoilCommand(c) => Fields::of(&[&c.raw()]),
+            Message::AngleReading(a) => Fields::of(&[&a.raw()]),
+            Message::Distance(d) => Fields::of(&[&d.raw()]),
             Message::CommandStepFd { command, step } => {
-                let mut raw = command.raw().to_vec();
-                raw.push(i64::from(*step));
-                raw
+                Fields::of(&[&command.raw(), &[i64::from(*step)]])
             }
             Message::AnglesDistanceFd { angles, distance } => {
-                let mut raw = angles.raw().to_vec();
-                raw.extend(distance.raw());
-                raw
+                Fields::of(&[&angles.raw(), &distance.raw()])
             }
-            Message::Status(s) => vec![
+            Message::Status(s) => Fields::of(&[&[
                 i64::from(s.node.code()),
                 i64::from(s.state.code()),
                 i64::from(s.step),
                 i64::from(s.node_time_us),
-            ],
+            ]]),
         }
     }
 
@@ -548,7 +544,7 @@ impl Message {
     pub fn encode(&self) -> Result<CanFrame, MessageError> {
         let spec = self.spec();
         let raw = self.raw();
-        for (signal, &value) in spec.signals.iter().zip(&raw) {
+        for (signal, &value) in spec.signals.iter().zip(raw.iter()) {
             if value < signal.raw_min() || value > signal.raw_max() {
                 return Err(MessageError::OutOfRange {
                     message: spec.name,
@@ -640,7 +636,7 @@ fn undefined(spec: &MessageSpec, signal: &SignalSpec, value: i64) -> MessageErro
 }
 
 /// A frame's message spec and raw signal values, after checking id, length and format.
-fn raw_fields(frame: &CanFrame) -> Result<(&'static MessageSpec, Vec<i64>), MessageError> {
+fn raw_fields(frame: &CanFrame) -> Result<(&'static MessageSpec, Fields), MessageError> {
     let spec = match frame.id() {
         CanId::Standard(id) => message_spec(id.as_raw()),
         CanId::Extended(_) => None,
@@ -665,12 +661,49 @@ fn raw_fields(frame: &CanFrame) -> Result<(&'static MessageSpec, Vec<i64>), Mess
             got,
         });
     }
-    let fields = spec
-        .signals
-        .iter()
-        .map(|s| unpack(s, frame.data()))
-        .collect();
+    let mut fields = Fields::default();
+    for signal in spec.signals {
+        fields.push(unpack(signal, frame.data()));
+    }
     Ok((spec, fields))
+}
+
+/// Most signals a message has (a test checks every message against it).
+const MAX_FIELDS: usize = 8;
+
+/// A message's raw field values in its spec's signal order, kept inline: encoding and decoding
+/// a frame allocate nothing.
+#[derive(Debug, Clone, Copy, Default)]
+struct Fields {
+    values: [i64; MAX_FIELDS],
+    len: usize,
+}
+
+impl Fields {
+    /// The values of `parts`, one after the other.
+    fn of(parts: &[&[i64]]) -> Fields {
+        let mut fields = Fields::default();
+        for &value in parts.iter().copied().flatten() {
+            fields.push(value);
+        }
+        fields
+    }
+
+    /// Appends `value`; past [`MAX_FIELDS`] values are dropped (no message has that many).
+    fn push(&mut self, value: i64) {
+        if let Some(slot) = self.values.get_mut(self.len) {
+            *slot = value;
+            self.len += 1;
+        }
+    }
+}
+
+impl std::ops::Deref for Fields {
+    type Target = [i64];
+
+    fn deref(&self) -> &[i64] {
+        &self.values[..self.len]
+    }
 }
 
 /// A frame decoded signal by signal into physical values (what `scanhil decode` prints).
@@ -693,8 +726,8 @@ pub fn decode_signals(frame: &CanFrame) -> Result<DecodedSignals, MessageError> 
     let signals = spec
         .signals
         .iter()
-        .zip(fields)
-        .map(|(s, raw)| (s.name, s.physical(raw)))
+        .zip(fields.iter())
+        .map(|(s, &raw)| (s.name, s.physical(raw)))
         .collect();
     Ok(DecodedSignals { spec, signals })
 }
@@ -757,6 +790,20 @@ mod tests {
             assert!(message_spec(message.id()).is_some(), "{message:?}");
             let frame = message.encode().unwrap();
             assert_eq!(Message::decode(&frame), Ok(message));
+        }
+    }
+
+    #[test]
+    fn every_message_fits_the_inline_fields() {
+        for message in spec::MESSAGES {
+            assert!(message.signals.len() <= MAX_FIELDS, "{}", message.name);
+        }
+        for message in examples() {
+            assert_eq!(
+                message.raw().len(),
+                message.spec().signals.len(),
+                "{message:?}"
+            );
         }
     }
 

@@ -492,17 +492,14 @@ pub fn message_spec(id: u16) -> Option<&'static MessageSpec> {
 pub fn pack(signals: &[SignalSpec], raw: &[i64], payload: &mut [u8]) {
     for (spec, &value) in signals.iter().zip(raw) {
         let bits = value as u64;
-        for i in 0..u16::from(spec.length) {
-            let bit = spec.start_bit + i;
-            let Some(byte) = payload.get_mut(usize::from(bit / 8)) else {
+        for span in byte_spans(spec) {
+            // Bits from here on fall outside the payload, and so do the later signals'.
+            let Some(byte) = payload.get_mut(span.byte) else {
                 return;
             };
-            let mask = 1u8 << (bit % 8);
-            if bits >> i & 1 == 1 {
-                *byte |= mask;
-            } else {
-                *byte &= !mask;
-            }
+            let chunk = (bits >> span.value_shift) as u8 & span.width_mask;
+            let mask = span.width_mask << span.byte_shift;
+            *byte = (*byte & !mask) | (chunk << span.byte_shift);
         }
     }
 }
@@ -511,17 +508,46 @@ pub fn pack(signals: &[SignalSpec], raw: &[i64], payload: &mut [u8]) {
 #[must_use]
 pub fn unpack(spec: &SignalSpec, payload: &[u8]) -> i64 {
     let mut bits = 0u64;
-    for i in 0..u16::from(spec.length) {
-        let bit = spec.start_bit + i;
-        let set = payload
-            .get(usize::from(bit / 8))
-            .is_some_and(|b| b >> (bit % 8) & 1 == 1);
-        bits |= u64::from(set) << i;
+    for span in byte_spans(spec) {
+        if let Some(byte) = payload.get(span.byte) {
+            let chunk = byte >> span.byte_shift & span.width_mask;
+            bits |= u64::from(chunk) << span.value_shift;
+        }
     }
     if spec.signed && spec.length < 64 && bits >> (spec.length - 1) & 1 == 1 {
         bits |= u64::MAX << spec.length;
     }
     bits as i64
+}
+
+/// The part of a signal that lies in one payload byte.
+struct ByteSpan {
+    /// The payload byte.
+    byte: usize,
+    /// Position of the part's lowest bit in the byte.
+    byte_shift: u32,
+    /// Position of the part's lowest bit in the signal's value.
+    value_shift: u32,
+    /// The part's width as a mask of its low bits (1 to 8 bits set).
+    width_mask: u8,
+}
+
+/// The bytes a signal's bits occupy, lowest first, a whole byte at a time.
+fn byte_spans(spec: &SignalSpec) -> impl Iterator<Item = ByteSpan> {
+    let start = u32::from(spec.start_bit);
+    let end = start + u32::from(spec.length);
+    let first = start / 8;
+    let last = end.div_ceil(8);
+    (first..last).map(move |byte| {
+        let low = start.max(byte * 8);
+        let high = end.min(byte * 8 + 8);
+        ByteSpan {
+            byte: byte as usize,
+            byte_shift: low - byte * 8,
+            value_shift: low - start,
+            width_mask: (0xFFu16 >> (8 - (high - low))) as u8,
+        }
+    })
 }
 
 #[cfg(test)]
@@ -555,6 +581,65 @@ mod tests {
             );
         }
         assert!(MESSAGES.iter().all(|m| m.id <= crate::can::STANDARD_ID_MAX));
+    }
+
+    /// The bit-at-a-time packing the byte-wise one replaced: the oracle.
+    fn pack_bit_by_bit(signals: &[SignalSpec], raw: &[i64], payload: &mut [u8]) {
+        for (spec, &value) in signals.iter().zip(raw) {
+            for i in 0..u16::from(spec.length) {
+                let bit = spec.start_bit + i;
+                let Some(byte) = payload.get_mut(usize::from(bit / 8)) else {
+                    return;
+                };
+                let mask = 1u8 << (bit % 8);
+                if (value as u64) >> i & 1 == 1 {
+                    *byte |= mask;
+                } else {
+                    *byte &= !mask;
+                }
+            }
+        }
+    }
+
+    /// The bit-at-a-time unpacking the byte-wise one replaced: the oracle.
+    fn unpack_bit_by_bit(spec: &SignalSpec, payload: &[u8]) -> i64 {
+        let mut bits = 0u64;
+        for i in 0..u16::from(spec.length) {
+            let bit = spec.start_bit + i;
+            let set = payload
+                .get(usize::from(bit / 8))
+                .is_some_and(|b| b >> (bit % 8) & 1 == 1);
+            bits |= u64::from(set) << i;
+        }
+        if spec.signed && spec.length < 64 && bits >> (spec.length - 1) & 1 == 1 {
+            bits |= u64::MAX << spec.length;
+        }
+        bits as i64
+    }
+
+    proptest::proptest! {
+        #[test]
+        fn byte_wise_packing_agrees_with_bit_by_bit(
+            start_bit in 0u16..80,
+            length in 1u8..=64,
+            signed in proptest::bool::ANY,
+            value in proptest::num::i64::ANY,
+            gap in 0u16..10,
+            next_value in proptest::num::i64::ANY,
+            background in proptest::collection::vec(proptest::num::u8::ANY, 0..12),
+        ) {
+            let spec = SignalSpec { start_bit, length, signed, ..SEQ };
+            // A second signal after a gap (whose bits must be left alone), and running off
+            // the payload stops both.
+            let next_start = start_bit + u16::from(length) + gap;
+            let next = SignalSpec { start_bit: next_start, length: 11, ..SEQ };
+            let (mut fast, mut slow) = (background.clone(), background);
+            pack(&[spec, next], &[value, next_value], &mut fast);
+            pack_bit_by_bit(&[spec, next], &[value, next_value], &mut slow);
+            proptest::prop_assert_eq!(&fast, &slow);
+            proptest::prop_assert_eq!(unpack(&spec, &fast), unpack_bit_by_bit(&spec, &fast));
+            proptest::prop_assert_eq!(unpack(&next, &fast), unpack_bit_by_bit(&next, &fast));
+        }
     }
 
     #[test]

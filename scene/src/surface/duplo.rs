@@ -17,6 +17,8 @@
 
 use nalgebra::{Point3, Vector3};
 
+use super::bounds::Aabb;
+use super::cell_grid::CellGrid;
 use super::face::Face;
 
 /// Stud pitch, mm.
@@ -46,6 +48,10 @@ pub fn stud_centers() -> Vec<[f64; 2]> {
 }
 
 /// The brick's faces in its local frame, and the table under it when `table` is set.
+///
+/// The brick's faces are grouped in its bounding box, the studs in a grid of one cell per
+/// stud, each stud's faces in its own box, so a ray tests a stud only when it passes near it
+/// (the answer is the flat list's, see [`Face::Group`]).
 #[must_use]
 pub fn faces(table: bool) -> Vec<Face> {
     let (hw, hl, h) = (BODY_WIDTH_MM / 2.0, BODY_LENGTH_MM / 2.0, BODY_HEIGHT_MM);
@@ -58,7 +64,7 @@ pub fn faces(table: bool) -> Vec<Face> {
             half_v: h / 2.0,
             normal,
         };
-    let mut faces = vec![
+    let mut brick = vec![
         Face::Rect {
             center: Point3::origin(),
             u: Vector3::x(),
@@ -72,23 +78,21 @@ pub fn faces(table: bool) -> Vec<Face> {
         side(Vector3::y(), Vector3::x(), hw, hl),
         side(-Vector3::y(), Vector3::x(), hw, hl),
     ];
-    for axis_xy in stud_centers() {
-        let (r_in, r_out) = (STUD_BORE_DIAMETER_MM / 2.0, STUD_OUTER_DIAMETER_MM / 2.0);
-        let wall = |radius, solid_inside| Face::Cylinder {
-            axis_xy,
-            radius,
-            z_min: 0.0,
-            z_max: STUD_HEIGHT_MM,
-            solid_inside,
-        };
-        faces.push(Face::Annulus {
-            center: Point3::new(axis_xy[0], axis_xy[1], STUD_HEIGHT_MM),
-            r_in,
-            r_out,
-        });
-        faces.push(wall(r_out, true));
-        faces.push(wall(r_in, false));
-    }
+    let half_grid = |n: usize| n as f64 * PITCH_MM / 2.0;
+    brick.push(Face::Grid(Box::new(CellGrid::new(
+        [-half_grid(STUDS.0), -half_grid(STUDS.1)],
+        PITCH_MM,
+        STUDS,
+        (0.0, STUD_HEIGHT_MM),
+        stud_centers().into_iter().map(stud).collect(),
+    ))));
+    let mut faces = vec![Face::Group {
+        bounds: Aabb::around(
+            Point3::new(-hw, -hl, -h),
+            Point3::new(hw, hl, STUD_HEIGHT_MM),
+        ),
+        faces: brick,
+    }];
     if table {
         faces.push(Face::Plane {
             point: Point3::new(0.0, 0.0, -h),
@@ -96,6 +100,34 @@ pub fn faces(table: bool) -> Vec<Face> {
         });
     }
     faces
+}
+
+/// One hollow stud on `axis_xy`: its top ring, outer wall and bore, in its bounding box.
+fn stud(axis_xy: [f64; 2]) -> Face {
+    let (r_in, r_out) = (STUD_BORE_DIAMETER_MM / 2.0, STUD_OUTER_DIAMETER_MM / 2.0);
+    let wall = |radius, solid_inside| Face::Cylinder {
+        axis_xy,
+        radius,
+        z_min: 0.0,
+        z_max: STUD_HEIGHT_MM,
+        solid_inside,
+    };
+    let [x, y] = axis_xy;
+    Face::Group {
+        bounds: Aabb::around(
+            Point3::new(x - r_out, y - r_out, 0.0),
+            Point3::new(x + r_out, y + r_out, STUD_HEIGHT_MM),
+        ),
+        faces: vec![
+            Face::Annulus {
+                center: Point3::new(x, y, STUD_HEIGHT_MM),
+                r_in,
+                r_out,
+            },
+            wall(r_out, true),
+            wall(r_in, false),
+        ],
+    }
 }
 
 #[cfg(test)]

@@ -3,9 +3,15 @@
 //! A surface is the boundary of a union of solids seen from above. A ray that starts outside
 //! every solid first touches the union where it first crosses any face, so the first hit of a
 //! surface is the nearest face crossing, whatever face it is. Normals point out of the solid.
+//!
+//! Faces may be gathered in a [`Face::Group`] inside a bounding box: a ray that misses the box
+//! skips them all. The nearest crossing is the same as over the flat list (ties go to the
+//! earlier face in both), so grouping only changes how fast the answer comes.
 
 use nalgebra::{Point3, Vector3};
 
+use super::bounds::Aabb;
+use super::cell_grid::CellGrid;
 use super::height_map::HeightField;
 
 /// Nearest distance along a ray that counts as a hit; smaller ones are the ray's own start
@@ -80,6 +86,15 @@ pub enum Face {
     },
     /// A height map's triangulated surface.
     HeightField(Box<HeightField>),
+    /// Faces that all lie inside `bounds`, tested only when the ray meets it.
+    Group {
+        /// A box around every face of the group.
+        bounds: Aabb,
+        /// The faces, in order (the earlier wins a tie).
+        faces: Vec<Face>,
+    },
+    /// Faces in a uniform x-y grid, tested only in the cells the ray crosses.
+    Grid(Box<CellGrid>),
 }
 
 impl Face {
@@ -171,8 +186,32 @@ impl Face {
                 })
             }
             Face::HeightField(field) => field.intersect(origin, dir, t_max),
+            Face::Group { bounds, faces } => bounds
+                .meets(origin, dir, T_MIN_MM, t_max)
+                .then(|| nearest_hit(faces, origin, dir, t_max))
+                .flatten(),
+            Face::Grid(grid) => nearest_hit(
+                grid.faces_along(origin, dir, T_MIN_MM, t_max),
+                origin,
+                dir,
+                t_max,
+            ),
         }
     }
+}
+
+/// The nearest crossing of the ray with any of `faces` (the earliest face on a tie).
+#[must_use]
+pub fn nearest_hit<'a>(
+    faces: impl IntoIterator<Item = &'a Face>,
+    origin: &Point3<f64>,
+    dir: &Vector3<f64>,
+    t_max: f64,
+) -> Option<Hit> {
+    faces
+        .into_iter()
+        .filter_map(|f| f.intersect(origin, dir, t_max))
+        .min_by(|a, b| a.t_mm.total_cmp(&b.t_mm))
 }
 
 fn within(t: f64, t_max: f64) -> bool {
