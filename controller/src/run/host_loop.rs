@@ -34,7 +34,7 @@ use crate::trajectory::Trajectory;
 pub enum LoopError {
     /// No answer within the watchdog's allowance.
     #[error(
-        "link timeout on {link}: no angle reading for period {period} within {waited:?} ({periods} periods' allowance)"
+        "link timeout on {link}: no angle reading for period {period} within {waited:?} (watchdog: {periods} periods)"
     )]
     LinkTimeout {
         /// The link.
