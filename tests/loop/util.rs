@@ -336,6 +336,7 @@ impl Drop for ServedEmulator {
 pub struct SlcanHost {
     file: std::fs::File,
     frames: std::sync::mpsc::Receiver<Message>,
+    reading: std::sync::Arc<std::sync::atomic::AtomicBool>,
 }
 
 impl SlcanHost {
@@ -350,11 +351,13 @@ impl SlcanHost {
             .expect("opening the pty");
         let mut reader = file.try_clone().expect("a second handle");
         let (tx, frames) = std::sync::mpsc::channel();
+        let reading = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+        let still_reading = reading.clone();
         std::thread::spawn(move || {
             let mut decoder = SlcanDecoder::new();
             let mut buf = [0u8; 1024];
             while let Ok(n) = reader.read(&mut buf) {
-                if n == 0 {
+                if n == 0 || !still_reading.load(std::sync::atomic::Ordering::SeqCst) {
                     break;
                 }
                 let frames = decoder
@@ -372,7 +375,41 @@ impl SlcanHost {
             }
         });
         file.write_all(b"O\r").expect("opening the channel");
-        SlcanHost { file, frames }
+        SlcanHost {
+            file,
+            frames,
+            reading,
+        }
+    }
+
+    /// Stops reading the line for good (the reader reads at most one more chunk), while the
+    /// line stays open: a host that stops reading.
+    pub fn stop_reading(&self) {
+        self.reading
+            .store(false, std::sync::atomic::Ordering::SeqCst);
+    }
+
+    /// Sends `messages(k)` for k = `first`, `first + 1`, ... from a thread, without reading,
+    /// until a write fails (the emulator has gone).
+    pub fn spawn_blind_writer(
+        &self,
+        first: u32,
+        messages: impl Fn(u32) -> Vec<Message> + Send + 'static,
+    ) -> std::thread::JoinHandle<u32> {
+        use std::io::Write;
+        let mut file = self.file.try_clone().expect("a second handle");
+        std::thread::spawn(move || {
+            for k in first.. {
+                for message in messages(k) {
+                    let frame = message.encode().expect("encodable");
+                    let line = scanhil_protocol::slcan::encode_frame(&frame);
+                    if file.write_all(line.as_bytes()).is_err() {
+                        return k;
+                    }
+                }
+            }
+            u32::MAX
+        })
     }
 
     /// Sends a message.

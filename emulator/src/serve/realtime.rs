@@ -9,6 +9,12 @@
 //! Reported: the measured period (tick to tick) as min / median / p99 / max, overruns (a tick
 //! that started more than one period late, so a period was skipped), and stale periods (no
 //! fresh command since the previous tick: the controller missed its deadline).
+//!
+//! No write blocks the clock: a period whose frames the line does not take within the send
+//! allowance is dropped and counted, and while bytes of an earlier period still wait the next
+//! period's frames are not queued at all (so what waits stays one period's worth). When no
+//! period's frames have gone out for the watchdog's allowance of wall time, the host has
+//! stopped reading: the run ends as the watchdog ends it (`ended_by: host_stopped_reading`).
 
 use std::time::{Duration, Instant};
 
@@ -16,7 +22,7 @@ use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::loop_timing::PeriodRecorder;
 use scanhil_protocol::message::{Message, MessageError, NodeState};
 
-use super::lockstep::linger;
+use super::lockstep::{host_stopped_reading, linger, send_last_frames};
 use super::lockstep_node::{angle_frame, fault_frame, periods_per_heartbeat, status_frame};
 use super::mirror_node::{MirrorNode, NodeOutput};
 use super::{LoopReport, RunEnd, ServeConfig, ServeLinks, ServeOutcome};
@@ -50,6 +56,8 @@ pub async fn run(
     let mut unanswered_since: Option<Instant> = None;
     let silence_allowance = period.saturating_mul(config.watchdog_periods);
     let mut dropped_periods = 0u64;
+    // Since when no period's frames have gone out whole (the host is not reading).
+    let mut unsent_since: Option<Instant> = None;
     // The clock starts when the host has opened the channel (SLCAN `O`; SocketCAN is open).
     while !links.fsm.channel_open() {
         let received = tokio::select! {
@@ -144,27 +152,33 @@ pub async fn run(
             last_command_period.is_some_and(|last| k - last > u64::from(config.watchdog_periods));
         let silent_wall = last_command_period.is_some()
             && unanswered_since.is_some_and(|since| now.duration_since(since) > silence_allowance);
-        if silent_ticks || silent_wall {
+        let not_reading =
+            unsent_since.is_some_and(|since| now.duration_since(since) > silence_allowance);
+        if silent_ticks || silent_wall || not_reading {
             let (kind, detail) = node.on_link_timeout(config.watchdog_periods);
             // A frozen host leaves the line full: the frames are queued (a send that times out
             // keeps what it has not written) and go out while `linger` drains the host.
-            for frame in [
+            let last_frames = [
                 fault_frame(kind, detail, k)?,
                 status_frame(NodeState::Fault, k, node.plant().period_s())?,
-            ] {
-                if let Ok(result) =
-                    tokio::time::timeout(SEND_ALLOWANCE, links.fsm.send(&frame)).await
-                {
-                    result?;
-                }
-            }
+            ];
+            send_last_frames(links, &last_frames).await?;
             linger(links).await?;
             outcome = ServeOutcome::LinkTimeout;
-            ended_by = RunEnd::Watchdog;
-            error = Some(format!(
-                "link timeout: no coil command for {} periods",
-                config.watchdog_periods
-            ));
+            (ended_by, error) = if not_reading {
+                (
+                    RunEnd::HostStoppedReading,
+                    Some(host_stopped_reading(links, silence_allowance)),
+                )
+            } else {
+                (
+                    RunEnd::Watchdog,
+                    Some(format!(
+                        "link timeout: no coil command for {} periods",
+                        config.watchdog_periods
+                    )),
+                )
+            };
             break;
         }
         unanswered_since.get_or_insert(now);
@@ -183,16 +197,27 @@ pub async fn run(
             frames.push(status_frame(node.state(), k, node.plant().period_s())?);
         }
         // The clock master never waits for a slow host: what cannot go out within the send
-        // allowance is dropped (and counted), as frames on a bus nobody reads are lost.
+        // allowance is dropped (and counted), as frames on a bus nobody reads are lost; while
+        // an earlier period's bytes still wait, this period's are not even queued.
         let send = async {
+            if !links.fsm.try_flush()? {
+                return anyhow::Ok(false);
+            }
             for frame in &frames {
                 links.fsm.send(frame).await?;
             }
-            links.sensor.emit(&samples, &mut links.fsm).await
+            links.sensor.emit(&samples, &mut links.fsm).await?;
+            Ok(true)
         };
-        match tokio::time::timeout(SEND_ALLOWANCE, send).await {
+        let sent = match tokio::time::timeout(SEND_ALLOWANCE, send).await {
             Ok(result) => result?,
-            Err(_) => dropped_periods += 1,
+            Err(_) => false,
+        };
+        if sent {
+            unsent_since = None;
+        } else {
+            dropped_periods += 1;
+            unsent_since.get_or_insert(now);
         }
     }
     let stats = recorder.stats(period.as_secs_f64());

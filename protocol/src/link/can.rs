@@ -179,6 +179,20 @@ impl CanLink {
         Ok(())
     }
 
+    /// Writes what the transport takes now of the bytes a cut-short send left waiting,
+    /// without waiting; `true` when nothing waits (SocketCAN: always, the kernel queues whole
+    /// frames). A node that must never block checks this before it sends, so what waits for a
+    /// peer that is not reading stays bounded.
+    ///
+    /// # Errors
+    /// The transport's errors ([`LinkError::HangUp`] when the other end went away).
+    pub fn try_flush(&mut self) -> LinkResult<bool> {
+        match &mut self.transport {
+            Transport::SocketCan(_) => Ok(true),
+            Transport::Slcan(port) => port.try_flush(),
+        }
+    }
+
     /// Waits for the next frame. Cancel-safe: a frame is never lost to a dropped future.
     ///
     /// # Errors

@@ -278,6 +278,16 @@ impl SlcanPort {
         Ok(true)
     }
 
+    /// Writes what the line takes now of the bytes still waiting (frames whose send was cut
+    /// short, replies), without waiting; `true` when nothing is left waiting.
+    ///
+    /// # Errors
+    /// A line error ([`LinkError::HangUp`] when the peer is gone).
+    pub fn try_flush(&mut self) -> LinkResult<bool> {
+        self.line.try_flush_pending(&mut self.pending_tx)?;
+        Ok(self.pending_tx.is_empty())
+    }
+
     /// Waits for the next frame. Cancel-safe.
     ///
     /// # Errors
