@@ -2,21 +2,23 @@
 //! mid-run; the scan stops with a link timeout / hang-up, commands zero, exits non-zero, and
 //! what it recorded stays valid.
 
-use std::process::Command;
+use std::time::{Duration, Instant};
 
 use scanhil_protocol::message::Message;
 
 use crate::util::{
     ServedEmulator, decode_candump, fixture, recording_grows, report, scanhil, signal,
+    start_scan_of_node,
 };
 
 /// Runs a long scan against a hand-started emulator with the scan's watchdog at
 /// `watchdog_periods` (of the scenario's 50 ms allowance), sends the emulator `signal_name`
-/// after a moment, and returns scanhil's exit code, stderr and output folder.
+/// after a moment, and returns scanhil's exit code, stderr, output folder, and the wall time
+/// from the signal to its exit.
 fn scan_and_signal(
     signal_name: &str,
     watchdog_periods: u32,
-) -> (Option<i32>, String, tempfile::TempDir) {
+) -> (Option<i32>, String, tempfile::TempDir, Duration) {
     let emulator = ServedEmulator::start(&[
         "--scene",
         &fixture("scenes/loop-fast.json"),
@@ -25,28 +27,20 @@ fn scan_and_signal(
     ]);
     let out = tempfile::tempdir().expect("a temporary folder");
     let fsm = format!("slcan:{}", emulator.path("fsm"));
-    let child = Command::new(scanhil())
-        .args([
-            "scan",
-            &fixture("scenarios/test-loop-small.json"),
-            "--fsm",
-            &fsm,
-            "--no-emulator",
-            "--duration-s",
-            "60",
-            "--watchdog-periods",
-            &watchdog_periods.to_string(),
-            "--out",
-            out.path().to_str().expect("UTF-8 path"),
-        ])
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("starting scanhil");
+    let child = start_scan_of_node(
+        &scanhil(),
+        &fsm,
+        "lockstep",
+        60.0,
+        watchdog_periods,
+        out.path(),
+    );
     // Let the loop run, then stop the emulator.
     let _ = recording_grows(out.path(), 10_000);
     signal(emulator.child.id(), signal_name);
+    let signalled = Instant::now();
     let output = child.wait_with_output().expect("waiting for scanhil");
+    let detected_within = signalled.elapsed();
     if signal_name == "STOP" {
         signal(emulator.child.id(), "CONT");
     }
@@ -55,10 +49,13 @@ fn scan_and_signal(
         output.status.code(),
         String::from_utf8_lossy(&output.stderr).into_owned(),
         out,
+        detected_within,
     )
 }
 
-fn assert_stopped_cleanly(
+/// Asserts a scan stopped early for `why`: exit 3, the reason on stderr and in the report, a
+/// recording that decodes, and (if `zero_command_sent`) a zero last command.
+pub fn assert_stopped_cleanly(
     code: Option<i32>,
     stderr: &str,
     out: &tempfile::TempDir,
@@ -120,7 +117,7 @@ fn assert_stopped_cleanly(
 fn a_frozen_emulator_stops_the_scan_with_a_link_timeout() {
     // 40 x 50 ms = 2 s: far above a loaded machine's hiccup before the freeze, so the
     // timeout is the freeze's (a 0.5 s watchdog nearly coincided with such stalls).
-    let (code, stderr, out) = scan_and_signal("STOP", 40);
+    let (code, stderr, out, _) = scan_and_signal("STOP", 40);
     assert_stopped_cleanly(code, &stderr, &out, "link timeout", true);
 }
 
@@ -128,6 +125,12 @@ fn a_frozen_emulator_stops_the_scan_with_a_link_timeout() {
 fn a_killed_emulator_stops_the_scan_with_a_hang_up() {
     // A watchdog no run reaches (100 000 x 50 ms): only the hang-up can stop this scan, so
     // the cause cannot be a timeout racing the kill.
-    let (code, stderr, out) = scan_and_signal("KILL", 100_000);
+    let (code, stderr, out, detected_within) = scan_and_signal("KILL", 100_000);
     assert_stopped_cleanly(code, &stderr, &out, "hung up", false);
+    // The detection bound: the host's next read sees the hang-up (no watchdog involved, its
+    // 5000 s are never reached); 10 s covers writing the outputs on a loaded machine.
+    assert!(
+        detected_within < Duration::from_secs(10),
+        "the scan ended {detected_within:?} after the kill"
+    );
 }

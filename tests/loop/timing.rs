@@ -3,12 +3,11 @@
 //! planned period, a long stall of the host trips the watchdogs with the coils at zero; and
 //! the bus-load refusal before a run.
 
-use std::process::Command;
 use std::time::Duration;
 
 use crate::util::{
     ServedEmulator, decode_candump, fixture, number, recording_grows, report, run_scanhil, scanhil,
-    signal,
+    signal, start_scan_of_node,
 };
 
 /// Asserts what must hold of one [`PeriodStats`] block at `side` in `report`, whatever the
@@ -124,26 +123,14 @@ fn realtime_run(
     ]);
     let out = tempfile::tempdir().expect("a temporary folder");
     let fsm = format!("slcan:{}", emulator.path("fsm"));
-    let mut child = Command::new(scanhil())
-        .args([
-            "scan",
-            &fixture("scenarios/test-loop-small.json"),
-            "--fsm",
-            &fsm,
-            "--no-emulator",
-            "--timing",
-            "realtime",
-            "--duration-s",
-            &duration_s.to_string(),
-            "--watchdog-periods",
-            &host_watchdog_periods.to_string(),
-            "--out",
-            out.path().to_str().expect("UTF-8 path"),
-        ])
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("starting scanhil");
+    let mut child = start_scan_of_node(
+        &scanhil(),
+        &fsm,
+        "realtime",
+        duration_s,
+        host_watchdog_periods,
+        out.path(),
+    );
     if recording_grows(out.path(), bytes) {
         return (emulator, child, out);
     }

@@ -436,6 +436,39 @@ impl SlcanHost {
     }
 }
 
+/// Starts `scanhil scan` of test-loop-small against a mirror node on `fsm` (no emulator of
+/// its own) in `timing`, for `duration_s` with a watchdog of `watchdog_periods`, into `out`;
+/// stderr piped, stdout dropped.
+pub fn start_scan_of_node(
+    scanhil: &Path,
+    fsm: &str,
+    timing: &str,
+    duration_s: f64,
+    watchdog_periods: u32,
+    out: &Path,
+) -> std::process::Child {
+    Command::new(scanhil)
+        .args([
+            "scan",
+            &fixture("scenarios/test-loop-small.json"),
+            "--fsm",
+            fsm,
+            "--no-emulator",
+            "--timing",
+            timing,
+            "--duration-s",
+            &duration_s.to_string(),
+            "--watchdog-periods",
+            &watchdog_periods.to_string(),
+            "--out",
+            out.to_str().expect("UTF-8 path"),
+        ])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("starting scanhil")
+}
+
 /// Starts a 30 s `scanhil scan` of test-loop-small into `out` (stdout and stderr piped) and
 /// waits until its candump log holds more than `bytes`: a scan well under way, to interrupt
 /// or to compete with. Panics if it never gets there.

@@ -46,6 +46,19 @@ pub enum LoopError {
         /// The wall-clock time waited.
         waited: Duration,
     },
+    /// The node stopped reading: a frame could not be written within the watchdog's allowance
+    /// (its line stayed full), so the host stops instead of blocking in the write for ever.
+    #[error(
+        "{link}: the node stopped reading: a frame could not be written within {waited:?} ({periods} periods' allowance)"
+    )]
+    NodeNotReading {
+        /// The link.
+        link: String,
+        /// The watchdog's periods.
+        periods: u32,
+        /// The wall-clock time the write waited.
+        waited: Duration,
+    },
     /// A node reported a fault that ends the run (its own link timeout).
     #[error("{link}: the {node:?} node reported {kind:?} at step {step} (mod 2^16)")]
     NodeFault {

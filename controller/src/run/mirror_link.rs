@@ -187,14 +187,24 @@ impl MirrorLink {
         self.inbox = inbox;
     }
 
-    /// Sends a frame, its recording stamped with its loop time (lockstep).
+    /// Sends a frame, its recording stamped with its loop time (lockstep). The write may wait
+    /// for a full line as long as the watchdog allows an answer to wait, no longer: a node
+    /// that stops reading never blocks the host.
     ///
     /// # Errors
-    /// Link errors.
+    /// [`LoopError::NodeNotReading`] when the frame could not be written in time (it stays
+    /// queued in the link); link errors.
     pub async fn send_stamped(&mut self, frame: &StampedFrame) -> Result<(), LoopError> {
         self.at(frame.t_s);
-        self.port.send(&frame.frame).await?;
-        Ok(())
+        let allowance = self.total_allowance();
+        match tokio::time::timeout(allowance, self.port.send(&frame.frame)).await {
+            Ok(sent) => Ok(sent?),
+            Err(_elapsed) => Err(LoopError::NodeNotReading {
+                link: self.port.name().to_owned(),
+                periods: self.watchdog_periods,
+                waited: allowance,
+            }),
+        }
     }
 
     /// Waits for the next frame, its recording stamped with loop time `t_s` (lockstep).
