@@ -173,7 +173,10 @@ impl MirrorLink {
     /// The link's counters.
     #[must_use]
     pub fn counters(&self) -> MirrorLinkCounters {
-        self.inbox.counters()
+        MirrorLinkCounters {
+            bus_error_frames: self.port.stats().bus_error_frames,
+            ..self.inbox.counters()
+        }
     }
 
     /// Hands the inbox to a loop that files the frames itself ([`super::host_loop::HostLoop`]);

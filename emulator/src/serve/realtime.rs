@@ -11,10 +11,11 @@
 //! fresh command since the previous tick: the controller missed its deadline).
 //!
 //! No write blocks the clock: a period whose frames the line does not take within the send
-//! allowance is dropped and counted, and while bytes of an earlier period still wait the next
-//! period's frames are not queued at all (so what waits stays one period's worth). When no
-//! period's frames have gone out for the watchdog's allowance of wall time, the host has
-//! stopped reading: the run ends as the watchdog ends it (`ended_by: host_stopped_reading`).
+//! allowance is dropped and counted; an earlier period's bytes go out first, within the same
+//! allowance, and a period whose allowance they use up is not queued at all (so what waits
+//! stays one period's worth). When the line has taken no byte for the watchdog's allowance
+//! of wall time, the host has stopped reading (a slow host still takes some): the run ends as
+//! the watchdog ends it (`ended_by: host_stopped_reading`).
 
 use std::time::{Duration, Instant};
 
@@ -56,7 +57,7 @@ pub async fn run(
     let mut unanswered_since: Option<Instant> = None;
     let silence_allowance = period.saturating_mul(config.watchdog_periods);
     let mut dropped_periods = 0u64;
-    // Since when no period's frames have gone out whole (the host is not reading).
+    // Since when the line has taken no byte while frames waited (the host is not reading).
     let mut unsent_since: Option<Instant> = None;
     // The clock starts when the host has opened the channel (SLCAN `O`; SocketCAN is open).
     while !links.fsm.channel_open() {
@@ -197,26 +198,27 @@ pub async fn run(
             frames.push(status_frame(node.state(), k, node.plant().period_s())?);
         }
         // The clock master never waits for a slow host: what cannot go out within the send
-        // allowance is dropped (and counted), as frames on a bus nobody reads are lost; while
-        // an earlier period's bytes still wait, this period's are not even queued.
+        // allowance is dropped (and counted), as frames on a bus nobody reads are lost; an
+        // earlier period's bytes go first, and while they wait this period's are not queued.
+        let written_before = links.fsm.bytes_written();
         let send = async {
-            if !links.fsm.try_flush()? {
-                return anyhow::Ok(false);
-            }
+            links.fsm.flush().await?;
             for frame in &frames {
                 links.fsm.send(frame).await?;
             }
-            links.sensor.emit(&samples, &mut links.fsm).await?;
-            Ok(true)
+            links.sensor.emit(&samples, &mut links.fsm).await
         };
         let sent = match tokio::time::timeout(SEND_ALLOWANCE, send).await {
-            Ok(result) => result?,
+            Ok(result) => result.map(|()| true)?,
             Err(_) => false,
         };
-        if sent {
+        if !sent {
+            dropped_periods += 1;
+        }
+        // A slow host still takes bytes; one that stopped reading takes none.
+        if sent || links.fsm.bytes_written() != written_before {
             unsent_since = None;
         } else {
-            dropped_periods += 1;
             unsent_since.get_or_insert(now);
         }
     }

@@ -278,14 +278,19 @@ impl SlcanPort {
         Ok(true)
     }
 
-    /// Writes what the line takes now of the bytes still waiting (frames whose send was cut
-    /// short, replies), without waiting; `true` when nothing is left waiting.
+    /// Bytes the line has taken so far (see [`SerialLine::bytes_written`]).
+    #[must_use]
+    pub fn bytes_written(&self) -> u64 {
+        self.line.bytes_written()
+    }
+
+    /// Writes the bytes still waiting (frames whose send was cut short, replies), waiting
+    /// while the line is full. Cancel-safe: what is not written stays waiting.
     ///
     /// # Errors
     /// A line error ([`LinkError::HangUp`] when the peer is gone).
-    pub fn try_flush(&mut self) -> LinkResult<bool> {
-        self.line.try_flush_pending(&mut self.pending_tx)?;
-        Ok(self.pending_tx.is_empty())
+    pub async fn flush(&mut self) -> LinkResult<()> {
+        self.line.flush_pending(&mut self.pending_tx).await
     }
 
     /// Waits for the next frame. Cancel-safe.
