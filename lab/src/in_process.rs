@@ -349,11 +349,7 @@ impl Transport {
                 })
                 .transpose()?;
             Some(MemorySensor {
-                track: SensorClockTrack {
-                    samples: 0,
-                    counter_zero_s: None,
-                    measuring_rate_hz,
-                },
+                track: SensorClockTrack::new(measuring_rate_hz),
                 capture,
                 decoder: IldSampleDecoder::new(),
             })
@@ -455,7 +451,7 @@ impl Transport {
             return Ok(());
         };
         for sample in samples {
-            sensor.track.count(sample);
+            sensor.track.count(sample, true);
             let bytes = encode_cycle(&[sample.value.raw(), sample.counter]);
             if let Some(capture) = &mut sensor.capture {
                 capture

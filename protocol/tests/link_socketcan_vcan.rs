@@ -96,4 +96,32 @@ mod vcan {
             .collect();
         assert_eq!(logged, frames());
     }
+
+    /// `CAN_ERR_ACK` and `CAN_ERR_BUSOFF` (linux/can/error.h).
+    const CAN_ERR_ACK: u32 = 0x20;
+    const CAN_ERR_BUSOFF: u32 = 0x40;
+
+    /// Error frames on vcan0: a real bus's controllers make them; on vcan0 a raw socket
+    /// writes them with `CAN_ERR_FLAG` set, and every socket subscribed to errors gets them.
+    #[tokio::test]
+    async fn vcan_error_frames_are_counted_and_bus_off_ends_the_receive() {
+        use scanhil_protocol::link::LinkError;
+        use socketcan::{CanErrorFrame, Socket};
+        let _bus = BUS.lock().await;
+        let (mut sender, mut receiver) = two_nodes().await;
+        let injector = socketcan::CanSocket::open("vcan0").unwrap();
+        injector
+            .write_frame(&CanErrorFrame::new_error(CAN_ERR_ACK, &[]).unwrap())
+            .expect("vcan0 takes an error frame from a raw socket");
+        let data = CanFrame::new(CanId::standard(0x123).unwrap(), &[1]).unwrap();
+        sender.send(&data).await.unwrap();
+        assert_eq!(receiver.recv().await.unwrap(), data);
+        assert_eq!(receiver.stats().bus_error_frames, 1);
+        injector
+            .write_frame(&CanErrorFrame::new_error(CAN_ERR_BUSOFF, &[]).unwrap())
+            .unwrap();
+        let error = receiver.recv().await.unwrap_err();
+        assert!(matches!(error, LinkError::BusOff { .. }), "{error}");
+        assert!(error.to_string().contains("bus-off"), "{error}");
+    }
 }

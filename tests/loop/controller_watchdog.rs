@@ -2,17 +2,20 @@
 //! mid-run; the scan stops with a link timeout / hang-up, commands zero, exits non-zero, and
 //! what it recorded stays valid.
 
+use std::time::{Duration, Instant};
+
 use scanhil_protocol::message::Message;
 
 use crate::util::{decode_candump, recording_grows, report, scan_against_served_emulator, signal};
 
 /// Runs a long scan against a hand-started emulator with the scan's watchdog at
 /// `watchdog_periods` (of the scenario's 50 ms allowance), sends the emulator `signal_name`
-/// after a moment, and returns scanhil's exit code, stderr and output folder.
+/// after a moment, and returns scanhil's exit code, stderr, output folder, and the wall time
+/// from the signal to its exit.
 fn scan_and_signal(
     signal_name: &str,
     watchdog_periods: u32,
-) -> (Option<i32>, String, tempfile::TempDir) {
+) -> (Option<i32>, String, tempfile::TempDir, Duration) {
     let out = tempfile::tempdir().expect("a temporary folder");
     let periods = watchdog_periods.to_string();
     let (emulator, child) = scan_against_served_emulator(
@@ -23,7 +26,9 @@ fn scan_and_signal(
     // Let the loop run, then stop the emulator.
     let _ = recording_grows(out.path(), 10_000);
     signal(emulator.child.id(), signal_name);
+    let signalled = Instant::now();
     let output = child.wait_with_output().expect("waiting for scanhil");
+    let detected_within = signalled.elapsed();
     if signal_name == "STOP" {
         signal(emulator.child.id(), "CONT");
     }
@@ -32,10 +37,13 @@ fn scan_and_signal(
         output.status.code(),
         String::from_utf8_lossy(&output.stderr).into_owned(),
         out,
+        detected_within,
     )
 }
 
-fn assert_stopped_cleanly(
+/// Asserts a scan stopped early for `why`: exit 3, the reason on stderr and in the report, a
+/// recording that decodes, and (if `zero_command_sent`) a zero last command.
+pub fn assert_stopped_cleanly(
     code: Option<i32>,
     stderr: &str,
     out: &tempfile::TempDir,
@@ -97,7 +105,7 @@ fn assert_stopped_cleanly(
 fn a_frozen_emulator_stops_the_scan_with_a_link_timeout() {
     // 40 x 50 ms = 2 s: far above a loaded machine's hiccup before the freeze, so the
     // timeout is the freeze's (a 0.5 s watchdog nearly coincided with such stalls).
-    let (code, stderr, out) = scan_and_signal("STOP", 40);
+    let (code, stderr, out, _) = scan_and_signal("STOP", 40);
     assert_stopped_cleanly(code, &stderr, &out, "link timeout", true);
 }
 
@@ -105,6 +113,12 @@ fn a_frozen_emulator_stops_the_scan_with_a_link_timeout() {
 fn a_killed_emulator_stops_the_scan_with_a_hang_up() {
     // A watchdog no run reaches (100 000 x 50 ms): only the hang-up can stop this scan, so
     // the cause cannot be a timeout racing the kill.
-    let (code, stderr, out) = scan_and_signal("KILL", 100_000);
+    let (code, stderr, out, detected_within) = scan_and_signal("KILL", 100_000);
     assert_stopped_cleanly(code, &stderr, &out, "hung up", false);
+    // The detection bound: the host's next read sees the hang-up (no watchdog involved, its
+    // 5000 s are never reached); 10 s covers writing the outputs on a loaded machine.
+    assert!(
+        detected_within < Duration::from_secs(10),
+        "the scan ended {detected_within:?} after the kill"
+    );
 }

@@ -9,6 +9,8 @@ mod util;
 mod slcan_close;
 // The emulator's watchdog: a silent controller gets zero coil currents and a LinkTimeout fault.
 mod emulator_watchdog;
+// Peers that stop reading: zero coils and a reason, never a blocked write.
+mod peers;
 // A whole scan over ptys: the Duplo stud's height, tracking error, recordings that decode.
 mod scan_result;
 // Lockstep determinism: the same seed twice gives bit-identical recordings and reports.

@@ -365,6 +365,7 @@ impl Drop for ServedEmulator {
 pub struct SlcanHost {
     file: std::fs::File,
     frames: std::sync::mpsc::Receiver<Message>,
+    reading: std::sync::Arc<std::sync::atomic::AtomicBool>,
 }
 
 impl SlcanHost {
@@ -379,11 +380,13 @@ impl SlcanHost {
             .expect("opening the pty");
         let mut reader = file.try_clone().expect("a second handle");
         let (tx, frames) = std::sync::mpsc::channel();
+        let reading = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(true));
+        let still_reading = reading.clone();
         std::thread::spawn(move || {
             let mut decoder = SlcanDecoder::new();
             let mut buf = [0u8; 1024];
             while let Ok(n) = reader.read(&mut buf) {
-                if n == 0 {
+                if n == 0 || !still_reading.load(std::sync::atomic::Ordering::SeqCst) {
                     break;
                 }
                 let frames = decoder
@@ -401,7 +404,41 @@ impl SlcanHost {
             }
         });
         file.write_all(b"O\r").expect("opening the channel");
-        SlcanHost { file, frames }
+        SlcanHost {
+            file,
+            frames,
+            reading,
+        }
+    }
+
+    /// Stops reading the line for good (the reader reads at most one more chunk), while the
+    /// line stays open: a host that stops reading.
+    pub fn stop_reading(&self) {
+        self.reading
+            .store(false, std::sync::atomic::Ordering::SeqCst);
+    }
+
+    /// Sends `messages(k)` for k = `first`, `first + 1`, ... from a thread, without reading,
+    /// until a write fails (the emulator has gone).
+    pub fn spawn_blind_writer(
+        &self,
+        first: u32,
+        messages: impl Fn(u32) -> Vec<Message> + Send + 'static,
+    ) -> std::thread::JoinHandle<u32> {
+        use std::io::Write;
+        let mut file = self.file.try_clone().expect("a second handle");
+        std::thread::spawn(move || {
+            for k in first.. {
+                for message in messages(k) {
+                    let frame = message.encode().expect("encodable");
+                    let line = scanhil_protocol::slcan::encode_frame(&frame);
+                    if file.write_all(line.as_bytes()).is_err() {
+                        return k;
+                    }
+                }
+            }
+            u32::MAX
+        })
     }
 
     /// Sends a message.
@@ -426,6 +463,39 @@ impl SlcanHost {
     pub fn recv(&self, timeout: std::time::Duration) -> Option<Message> {
         self.frames.recv_timeout(timeout).ok()
     }
+}
+
+/// Starts `scanhil scan` of test-loop-small against a mirror node on `fsm` (no emulator of
+/// its own) in `timing`, for `duration_s` with a watchdog of `watchdog_periods`, into `out`;
+/// stderr piped, stdout dropped.
+pub fn start_scan_of_node(
+    scanhil: &Path,
+    fsm: &str,
+    timing: &str,
+    duration_s: f64,
+    watchdog_periods: u32,
+    out: &Path,
+) -> std::process::Child {
+    Command::new(scanhil)
+        .args([
+            "scan",
+            &fixture("scenarios/test-loop-small.json"),
+            "--fsm",
+            fsm,
+            "--no-emulator",
+            "--timing",
+            timing,
+            "--duration-s",
+            &duration_s.to_string(),
+            "--watchdog-periods",
+            &watchdog_periods.to_string(),
+            "--out",
+            out.to_str().expect("UTF-8 path"),
+        ])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("starting scanhil")
 }
 
 /// Starts a 30 s `scanhil scan` of test-loop-small into `out` (stdout and stderr piped) and

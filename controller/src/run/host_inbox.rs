@@ -43,6 +43,9 @@ pub struct MirrorLinkCounters {
     pub malformed_frames: u64,
     /// Frames with ids that are not loop messages (other traffic).
     pub foreign_frames: u64,
+    /// SocketCAN: the bus's error frames (error-passive, no ACK, ...; a bus-off also ends
+    /// the run). Filled by the link, not the inbox.
+    pub bus_error_frames: u64,
 }
 
 /// Margin on the mirror's range beyond which an angle reading is not plausible.

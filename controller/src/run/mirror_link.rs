@@ -252,7 +252,10 @@ impl MirrorLink {
     /// The link's counters.
     #[must_use]
     pub fn counters(&self) -> MirrorLinkCounters {
-        self.inbox.counters()
+        MirrorLinkCounters {
+            bus_error_frames: self.port.stats().bus_error_frames,
+            ..self.inbox.counters()
+        }
     }
 
     /// Hands the inbox to a loop that files the frames itself ([`super::host_loop::HostLoop`]);
@@ -266,7 +269,8 @@ impl MirrorLink {
         self.inbox = inbox;
     }
 
-    /// Sends a frame, its recording stamped with its loop time (lockstep).
+    /// Sends a frame, its recording stamped with its loop time (lockstep). Unbounded: the
+    /// loops send through [`Self::send_within`], which bounds the wait for a full line.
     ///
     /// # Errors
     /// Link errors.

@@ -9,6 +9,13 @@
 //! fault and a Status(fault), and the run ends. The run also ends when the controller hangs
 //! up, or when it sends its own Status frame in a state other than running (the end of the
 //! run on a bus): the node answers Status(ready) as its last frame.
+//!
+//! No write blocks the safety logic: a period's answers must be written within the
+//! watchdog's whole allowance (`watchdog_periods` x the answer allowance). A host that stops
+//! reading (its line full) ends the run as the watchdog does (coils zeroed, LinkTimeout fault
+//! queued, `ended_by: host_stopped_reading`, exit 3), instead of leaving the node blocked in a
+//! write with current on the coils. The node's last frames never wait either
+//! ([`send_last_frames`]).
 
 use std::time::Duration;
 
@@ -36,6 +43,8 @@ pub async fn run(
     config: &ServeConfig,
 ) -> anyhow::Result<LoopReport> {
     let allowance = Duration::from_secs_f64(config.lockstep_answer_allowance_s);
+    // How long a period's answers may take to be written: the silence the node accepts.
+    let write_allowance = allowance.saturating_mul(config.watchdog_periods);
     let mut watchdog: Option<Watchdog> = None;
     let mut node = LockstepNode::new(node, config.heartbeat_hz);
     let mut misbehaving = config.misbehave.map(Misbehaving::new);
@@ -55,9 +64,7 @@ pub async fn run(
         };
         let frame = match received {
             None => {
-                for frame in node.on_link_timeout(config.watchdog_periods)? {
-                    links.fsm.send(&frame).await?;
-                }
+                send_last_frames(links, &node.on_link_timeout(config.watchdog_periods)?).await?;
                 linger(links).await?;
                 return Ok(LoopReport {
                     outcome: ServeOutcome::LinkTimeout,
@@ -110,16 +117,33 @@ pub async fn run(
                         watchdog.feed();
                     }
                 }
-                // The period's frames go out together: one write per link.
-                for send in answer.sends {
-                    match send {
-                        NodeSend::Frame(frame) => links.fsm.queue(&frame).await?,
-                        NodeSend::Samples(samples) => {
-                            links.sensor.emit(&samples, &mut links.fsm).await?;
+                // The period's frames go out together (one write per link), within the
+                // silence the node accepts: a host that stops reading never blocks the node.
+                let send = async {
+                    for send in answer.sends {
+                        match send {
+                            NodeSend::Frame(frame) => links.fsm.queue(&frame).await?,
+                            NodeSend::Samples(samples) => {
+                                links.sensor.emit(&samples, &mut links.fsm).await?;
+                            }
                         }
                     }
+                    links.fsm.flush().await?;
+                    anyhow::Ok(())
+                };
+                if let Ok(sent) = tokio::time::timeout(write_allowance, send).await {
+                    sent?;
+                } else {
+                    send_last_frames(links, &node.on_link_timeout(config.watchdog_periods)?)
+                        .await?;
+                    linger(links).await?;
+                    return Ok(LoopReport {
+                        outcome: ServeOutcome::LinkTimeout,
+                        ended_by: RunEnd::HostStoppedReading,
+                        timing: serde_json::Value::Null,
+                        error: Some(host_stopped_reading(links, write_allowance)),
+                    });
                 }
-                links.fsm.flush().await?;
             }
             NodeReply::EndOfRun(ready) => return end_of_run(&ready, links).await,
         }
@@ -155,6 +179,36 @@ async fn sleep_or_never(duration: Option<Duration>) {
 /// How long the node keeps the link open after its last frames, so the host can read them
 /// (closing a pty drops what the other end has not read yet).
 pub const LINGER: Duration = Duration::from_secs(2);
+
+/// How long each of the node's last frames may wait for a full line before it is left queued.
+pub const LAST_FRAME_ALLOWANCE: Duration = Duration::from_millis(2);
+
+/// Sends the node's last frames (its fault and status) without letting a full line hold it:
+/// a frame the line does not take within [`LAST_FRAME_ALLOWANCE`] stays queued in the link
+/// and goes out while [`linger`] reads, if the host reads at all. A host that has hung up
+/// is no error here.
+///
+/// # Errors
+/// A link error other than the host's hang-up.
+pub async fn send_last_frames(links: &mut ServeLinks, frames: &[CanFrame]) -> anyhow::Result<()> {
+    for frame in frames {
+        match tokio::time::timeout(LAST_FRAME_ALLOWANCE, links.fsm.send(frame)).await {
+            Err(_) | Ok(Ok(())) => {}
+            Ok(Err(error)) if RunEnd::from_link_error(&error).is_some() => return Ok(()),
+            Ok(Err(error)) => return Err(error.into()),
+        }
+    }
+    Ok(())
+}
+
+/// The reason given when the host left the node's frames unread for `waited`.
+#[must_use]
+pub fn host_stopped_reading(links: &ServeLinks, waited: Duration) -> String {
+    format!(
+        "the host stopped reading {}: the node's frames could not be written for {waited:?}",
+        links.fsm.name()
+    )
+}
 
 /// Keeps the link open, ignoring what arrives, until the host hangs up, closes the channel, or
 /// [`LINGER`] passes. It reads without ever waiting on a write: when the host is itself blocked

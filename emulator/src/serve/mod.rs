@@ -110,6 +110,9 @@ pub enum RunEnd {
     Duration,
     /// The watchdog fired.
     Watchdog,
+    /// The host stopped reading the mirror's link: the node's frames could not be written
+    /// within the watchdog's allowance (coils zeroed, as for the watchdog).
+    HostStoppedReading,
 }
 
 impl RunEnd {
@@ -217,6 +220,9 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
             "error": report.error,
         });
         println_flushed(&summary)?;
+        if let Some(error) = &report.error {
+            eprintln!("scanhil-emulator: {error}; coil currents zeroed");
+        }
         Ok(report.outcome)
     })
 }

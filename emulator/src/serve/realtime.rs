@@ -14,6 +14,13 @@
 //! period was skipped), and stale periods (no fresh command since the previous tick: a missed
 //! deadline), each listed with how late this node sent the reading it answers, so the host
 //! can tell which side missed ([`MissedDeadline`]).
+//!
+//! No write blocks the clock: a period whose frames the line does not take within the send
+//! allowance is dropped and counted; an earlier period's bytes go out first, within the same
+//! allowance, and a period whose allowance they use up is not queued at all (so what waits
+//! stays one period's worth). When the line has taken no byte for the watchdog's allowance
+//! of wall time, the host has stopped reading (a slow host still takes some): the run ends as
+//! the watchdog ends it (`ended_by: host_stopped_reading`).
 
 use std::time::{Duration, Instant};
 
@@ -22,7 +29,7 @@ use scanhil_protocol::link::LinkError;
 use scanhil_protocol::loop_timing::{MissedDeadline, PeriodRecorder};
 use scanhil_protocol::message::{Message, MessageError, NodeState};
 
-use super::lockstep::linger;
+use super::lockstep::{host_stopped_reading, linger, send_last_frames};
 use super::lockstep_node::{angle_frame, fault_frame, periods_per_heartbeat, status_frame};
 use super::mirror_node::{MirrorNode, NodeOutput};
 use super::{LoopReport, RunEnd, ServeConfig, ServeLinks, ServeOutcome};
@@ -65,6 +72,8 @@ pub async fn run(
     let mut unanswered_since: Option<Instant> = None;
     let silence_allowance = period.saturating_mul(config.watchdog_periods);
     let mut dropped_periods = 0u64;
+    // Since when the line has taken no byte while frames waited (the host is not reading).
+    let mut unsent_since: Option<Instant> = None;
     // The clock starts when the host has opened the channel (SLCAN `O`; SocketCAN is open).
     while !links.fsm.channel_open() {
         let received = tokio::select! {
@@ -130,27 +139,33 @@ pub async fn run(
             last_command_period.is_some_and(|last| k - last > u64::from(config.watchdog_periods));
         let silent_wall = last_command_period.is_some()
             && unanswered_since.is_some_and(|since| now.duration_since(since) > silence_allowance);
-        if silent_ticks || silent_wall {
+        let not_reading =
+            unsent_since.is_some_and(|since| now.duration_since(since) > silence_allowance);
+        if silent_ticks || silent_wall || not_reading {
             let (kind, detail) = node.on_link_timeout(config.watchdog_periods);
             // A frozen host leaves the line full: the frames are queued (a send that times out
             // keeps what it has not written) and go out while `linger` drains the host.
-            for frame in [
+            let last_frames = [
                 fault_frame(kind, detail, k)?,
                 status_frame(NodeState::Fault, k, node.plant().period_s())?,
-            ] {
-                if let Ok(result) =
-                    tokio::time::timeout(SEND_ALLOWANCE, links.fsm.send(&frame)).await
-                {
-                    result?;
-                }
-            }
+            ];
+            send_last_frames(links, &last_frames).await?;
             linger(links).await?;
             outcome = ServeOutcome::LinkTimeout;
-            ended_by = RunEnd::Watchdog;
-            error = Some(format!(
-                "link timeout: no coil command for {} periods",
-                config.watchdog_periods
-            ));
+            (ended_by, error) = if not_reading {
+                (
+                    RunEnd::HostStoppedReading,
+                    Some(host_stopped_reading(links, silence_allowance)),
+                )
+            } else {
+                (
+                    RunEnd::Watchdog,
+                    Some(format!(
+                        "link timeout: no coil command for {} periods",
+                        config.watchdog_periods
+                    )),
+                )
+            };
             break;
         }
         unanswered_since.get_or_insert(now);
@@ -181,22 +196,34 @@ pub async fn run(
             frames.push(status_frame(node.state(), k, node.plant().period_s())?);
         }
         // The clock master never waits for a slow host: what cannot go out within the send
-        // allowance is dropped (and counted), as frames on a bus nobody reads are lost.
+        // allowance is dropped (and counted), as frames on a bus nobody reads are lost; an
+        // earlier period's bytes go first, and while they wait this period's are not queued.
+        let written_before = links.fsm.bytes_written();
         let send = async {
+            links.fsm.flush().await?;
+            // The period's frames go out together: one write per link.
             for frame in &frames {
-                links.fsm.send(frame).await?;
+                links.fsm.queue(frame).await?;
             }
-            links.sensor.emit(&samples, &mut links.fsm).await
+            links.sensor.emit(&samples, &mut links.fsm).await?;
+            links.fsm.flush().await?;
+            anyhow::Ok(())
         };
-        match tokio::time::timeout(SEND_ALLOWANCE, send).await {
-            Ok(result) => {
-                result?;
-                previous_reading_late_s = Some(deadline.elapsed().as_secs_f64());
-            }
-            Err(_) => {
-                dropped_periods += 1;
-                previous_reading_late_s = None;
-            }
+        let sent = match tokio::time::timeout(SEND_ALLOWANCE, send).await {
+            Ok(result) => result.map(|()| true)?,
+            Err(_) => false,
+        };
+        if sent {
+            previous_reading_late_s = Some(deadline.elapsed().as_secs_f64());
+        } else {
+            dropped_periods += 1;
+            previous_reading_late_s = None;
+        }
+        // A slow host still takes bytes; one that stopped reading takes none.
+        if sent || links.fsm.bytes_written() != written_before {
+            unsent_since = None;
+        } else {
+            unsent_since.get_or_insert(now);
         }
     }
     let stats = recorder.stats(period.as_secs_f64());

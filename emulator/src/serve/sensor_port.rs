@@ -14,6 +14,14 @@
 //! loop: replies are written as far as the line takes them now, the rest goes out with the
 //! next cycle. What the commands set (output on/off, the counter, the laser) shapes the cycles
 //! sent. Distance frames on CAN have no command line.
+//!
+//! The ILD stream never waits for its reader, as a real RS422 sensor streams whether anyone
+//! listens: a cycle the line cannot take now (the host is not reading, or not keeping up) is
+//! dropped whole and counted (`dropped_cycles` in the summary; the measured-value counter
+//! still advances, so the host sees the gap). So a sensor line nobody reads never stalls the
+//! mirror, and at most one cycle and
+//! [`MAX_QUEUED_REPLY_BYTES`](scanhil_protocol::link::ild::MAX_QUEUED_REPLY_BYTES) of replies
+//! wait in memory.
 
 use scanhil_protocol::link::ild::{IldLink, IldRequest};
 use scanhil_protocol::link::role::Role;
@@ -53,6 +61,8 @@ pub struct CommandCounts {
     pub commands_answered: u64,
     /// Of those, refused with an `Exx` error.
     pub commands_refused: u64,
+    /// Replies dropped because the host left earlier ones unread.
+    pub replies_dropped: u64,
 }
 
 /// The sensor's part of the summary line.
@@ -71,6 +81,8 @@ pub struct SensorSummary {
 pub struct SensorClockTrack {
     /// Samples sent.
     pub samples: u64,
+    /// ILD line: samples whose output cycle the line could not take (dropped, not sent).
+    pub dropped_cycles: u64,
     /// The loop time counter value 0 stands for, s (`None` before the first sample).
     pub counter_zero_s: Option<f64>,
     /// The sensor's measuring rate, Hz.
@@ -96,11 +108,7 @@ impl SensorPort {
             );
         }
         let config = scene.sensor.unwrap_or_default();
-        let clock = SensorClockTrack {
-            samples: 0,
-            counter_zero_s: None,
-            measuring_rate_hz: config.measuring_rate_hz,
-        };
+        let clock = SensorClockTrack::new(config.measuring_rate_hz);
         if uri == "fsm" {
             return Ok((SensorPort::Can(clock), "fsm".into()));
         }
@@ -180,15 +188,19 @@ impl IldPort {
         if !reply.is_ok() {
             self.commands.commands_refused += 1;
         }
-        self.link.reply_now(&reply)
+        if !self.link.reply_now(&reply)? {
+            self.commands.replies_dropped += 1;
+        }
+        Ok(())
     }
 }
 
 impl SensorPort {
     /// Sends the samples of one period, in order, with one write. On the ILD line, first
     /// answers the command lines that have arrived, then sends each sample's output cycle as
-    /// the settings make it (none while the output is off). On CAN the Distance frames go out
-    /// with the frames queued on `fsm` before them.
+    /// the settings make it (none while the output is off), never waiting: while the host has
+    /// not read the previous period's bytes, this period's cycles are dropped whole (counted).
+    /// On CAN the Distance frames go out with the frames queued on `fsm` before them.
     ///
     /// # Errors
     /// Link errors.
@@ -197,17 +209,20 @@ impl SensorPort {
         match self {
             SensorPort::Off => {}
             SensorPort::Ild(port) => {
+                let line_free = port.link.try_flush()?;
                 for sample in samples {
                     if let Some(values) = port.settings.cycle(sample) {
-                        port.clock.count(sample);
-                        port.link.queue_cycle(&values)?;
+                        if line_free {
+                            port.link.queue_cycle(&values)?;
+                        }
+                        port.clock.count(sample, line_free);
                     }
                 }
-                port.link.flush().await?;
+                port.link.try_flush()?;
             }
             SensorPort::Can(clock) => {
                 for sample in samples {
-                    clock.count(sample);
+                    clock.count(sample, true);
                     let counter = sample.counter;
                     let sensor_time_us =
                         ((sample.t_s * 1e6).round() as u64 & u64::from(U24_MAX)) as u32;
@@ -242,12 +257,27 @@ impl SensorPort {
 }
 
 impl SensorClockTrack {
-    /// Counts one sample sent; the first one fixes the loop time of counter 0.
-    pub fn count(&mut self, sample: &IldSample) {
+    /// Nothing sent yet, from a sensor measuring at `measuring_rate_hz`.
+    #[must_use]
+    pub fn new(measuring_rate_hz: f64) -> SensorClockTrack {
+        SensorClockTrack {
+            samples: 0,
+            dropped_cycles: 0,
+            counter_zero_s: None,
+            measuring_rate_hz,
+        }
+    }
+
+    /// Counts one sample, `sent` or dropped; the first one fixes the loop time of counter 0.
+    pub fn count(&mut self, sample: &IldSample, sent: bool) {
         if self.counter_zero_s.is_none() {
             self.counter_zero_s =
                 Some(sample.t_s - f64::from(sample.counter) / self.measuring_rate_hz);
         }
-        self.samples += 1;
+        if sent {
+            self.samples += 1;
+        } else {
+            self.dropped_cycles += 1;
+        }
     }
 }

@@ -25,6 +25,8 @@ pub struct LinkStats {
     pub frames_received: u64,
     /// SLCAN only: malformed lines, refused and dropped frames.
     pub slcan: SlcanCounters,
+    /// SocketCAN only: error frames from the kernel (bus-off included).
+    pub bus_error_frames: u64,
 }
 
 /// Why a watched receive ended without a frame.
@@ -137,8 +139,9 @@ impl CanLink {
     #[must_use]
     pub fn stats(&self) -> LinkStats {
         let mut stats = self.stats.clone();
-        if let Transport::Slcan(port) = &self.transport {
-            stats.slcan = port.counters().clone();
+        match &self.transport {
+            Transport::Slcan(port) => stats.slcan = port.counters().clone(),
+            Transport::SocketCan(port) => stats.bus_error_frames = port.error_frames(),
         }
         stats
     }
@@ -191,10 +194,23 @@ impl CanLink {
         Ok(())
     }
 
-    /// Writes the frames queued so far.
+    /// SLCAN: the bytes the line has taken so far, which grow while the peer reads (a peer
+    /// that stops reading stops them); SocketCAN: `None` (the kernel takes whole frames).
+    #[must_use]
+    pub fn bytes_written(&self) -> Option<u64> {
+        match &self.transport {
+            Transport::SocketCan(_) => None,
+            Transport::Slcan(port) => Some(port.bytes_written()),
+        }
+    }
+
+    /// Writes the frames queued so far and the bytes a cut-short send left waiting, waiting
+    /// while the line is full (SocketCAN: nothing waits, the kernel queues whole frames). Cancel-safe. A node that
+    /// must never block flushes under a deadline before it queues more, so what waits for a
+    /// peer that is not reading stays bounded.
     ///
     /// # Errors
-    /// The transport's errors, naming the link.
+    /// The transport's errors ([`LinkError::HangUp`] when the other end went away).
     pub async fn flush(&mut self) -> LinkResult<()> {
         match &mut self.transport {
             Transport::SocketCan(_) => Ok(()),

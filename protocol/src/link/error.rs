@@ -40,6 +40,15 @@ pub enum LinkError {
         /// The link's URI (or path).
         link: String,
     },
+    /// SocketCAN: the CAN controller went bus-off (too many transmit errors): it takes no
+    /// part in the bus until restarted, so the run cannot go on.
+    #[error("{link}: the CAN controller went bus-off ({detail})")]
+    BusOff {
+        /// The link's URI.
+        link: String,
+        /// The kernel's error frame, described.
+        detail: String,
+    },
     /// Device end of SLCAN, when asked to end its run on close
     /// ([`crate::link::CanLink::end_run_on_close`]): the host closed the open channel with `C`.
     /// Like a hang-up, the end of the session, but the line stays usable.

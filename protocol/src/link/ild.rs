@@ -32,6 +32,10 @@ pub const MAX_COMMAND_LINE: usize = 256;
 /// to test its cap).
 pub const MAX_RAW_COMMAND_LINE: usize = 2 * MAX_COMMAND_LINE;
 
+/// Device: the most reply bytes [`IldLink::reply_now`] keeps waiting for a host that does not
+/// read them; further replies are dropped.
+pub const MAX_QUEUED_REPLY_BYTES: usize = 4096;
+
 /// One output cycle as received: the distance (or error) and the extra values
 /// `OUTADD_RS422` enabled, in the sensor's order.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -359,6 +363,19 @@ impl IldLink {
         self.line.flush_pending(&mut self.pending_tx).await
     }
 
+    /// Device: writes what is queued if the line takes it now, never waiting; `true` when
+    /// nothing is left waiting (the host has read what was sent before). A node that must
+    /// never block queues a period's cycles only after `true` and drops them whole otherwise,
+    /// so at most one period's cycles (and the replies) are ever queued and a host that stops
+    /// reading costs no memory: an RS422 sensor streams whether anyone reads or not.
+    ///
+    /// # Errors
+    /// Line errors ([`LinkError::HangUp`] when the host went away).
+    pub fn try_flush(&mut self) -> LinkResult<bool> {
+        self.line.try_flush_pending(&mut self.pending_tx)?;
+        Ok(self.pending_tx.is_empty())
+    }
+
     /// Device: waits for the next command line. Cancel-safe.
     ///
     /// # Errors
@@ -393,13 +410,20 @@ impl IldLink {
 
     /// Device: queues a reply and writes what the line takes now, without waiting; the rest
     /// goes out ahead of the next cycle, reply, or command poll. For a node that must never
-    /// block (the emulator's mirror loop).
+    /// block (the emulator's mirror loop). Returns `false` (the reply dropped, nothing
+    /// queued) when [`MAX_QUEUED_REPLY_BYTES`] are already waiting: a host that sends
+    /// commands but never reads their replies costs bounded memory.
     ///
     /// # Errors
     /// Line errors ([`LinkError::HangUp`] when the host went away).
-    pub fn reply_now(&mut self, reply: &IldReply) -> LinkResult<()> {
+    pub fn reply_now(&mut self, reply: &IldReply) -> LinkResult<bool> {
+        self.line.try_flush_pending(&mut self.pending_tx)?;
+        if self.pending_tx.len() >= MAX_QUEUED_REPLY_BYTES {
+            return Ok(false);
+        }
         self.queue(reply.encode().as_bytes())?;
-        self.line.try_flush_pending(&mut self.pending_tx)
+        self.line.try_flush_pending(&mut self.pending_tx)?;
+        Ok(true)
     }
 
     async fn send_bytes(&mut self, bytes: &[u8]) -> LinkResult<()> {

@@ -31,6 +31,8 @@ pub struct SerialLine {
     /// On a pty master: our own handle on the slave, held until the peer has spoken, so the
     /// master does not read `EIO` (= hang-up) before the peer has opened its end.
     slave_keepalive: Option<OwnedFd>,
+    /// Bytes the line has taken so far (a peer that reads lets this grow).
+    written: std::sync::atomic::AtomicU64,
 }
 
 impl SerialLine {
@@ -107,6 +109,7 @@ impl SerialLine {
             fd: register(file).map_err(open_error)?,
             _lock: lock,
             slave_keepalive,
+            written: std::sync::atomic::AtomicU64::new(0),
         })
     }
 
@@ -114,6 +117,17 @@ impl SerialLine {
     #[must_use]
     pub fn name(&self) -> &str {
         &self.name
+    }
+
+    /// Bytes the line has taken so far: while a peer reads, this grows.
+    #[must_use]
+    pub fn bytes_written(&self) -> u64 {
+        self.written.load(std::sync::atomic::Ordering::Relaxed)
+    }
+
+    fn took(&self, n: usize) {
+        self.written
+            .fetch_add(n as u64, std::sync::atomic::Ordering::Relaxed);
     }
 
     /// Reads what is available (at least one byte), waiting for it. Cancel-safe.
@@ -181,7 +195,10 @@ impl SerialLine {
             // full: without this the loop would spin on EAGAIN for ever.
             let peer_gone = guard.ready().is_write_closed();
             match guard.try_io(|inner| inner.get_ref().write(bytes)) {
-                Ok(Ok(n)) => return Ok(n),
+                Ok(Ok(n)) => {
+                    self.took(n);
+                    return Ok(n);
+                }
                 Ok(Err(e)) if e.raw_os_error() == Some(nix::libc::EIO) => {
                     return Err(self.hang_up());
                 }
@@ -211,6 +228,7 @@ impl SerialLine {
         while !pending.is_empty() {
             match self.fd.get_ref().write(pending) {
                 Ok(n) => {
+                    self.took(n);
                     pending.drain(..n);
                 }
                 Err(e) if e.raw_os_error() == Some(nix::libc::EIO) => {

@@ -288,11 +288,18 @@ impl SlcanPort {
         Ok(true)
     }
 
-    /// Writes every queued line, waiting while the line's buffer is full: one `write` when
-    /// the line takes them all.
+    /// Bytes the line has taken so far (see [`SerialLine::bytes_written`]).
+    #[must_use]
+    pub fn bytes_written(&self) -> u64 {
+        self.line.bytes_written()
+    }
+
+    /// Writes every queued line and the bytes still waiting (frames whose send was cut short,
+    /// replies), waiting while the line is full: one `write` when the line takes them all.
+    /// Cancel-safe: what is not written stays waiting.
     ///
     /// # Errors
-    /// A line error.
+    /// A line error ([`LinkError::HangUp`] when the peer is gone).
     pub async fn flush(&mut self) -> LinkResult<()> {
         self.line.flush_pending(&mut self.pending_tx).await
     }

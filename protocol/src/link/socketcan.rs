@@ -1,12 +1,20 @@
 //! SocketCAN: a kernel CAN interface (`vcan0`, a real `can0`) through the `socketcan` crate
 //! under tokio. The socket is opened in CAN FD mode, so it carries classical and FD frames
 //! (FD frames need an FD-capable interface: `ip link set can0 type can bitrate 1000000
-//! dbitrate 5000000 fd on`). Error frames are not subscribed to.
+//! dbitrate 5000000 fd on`).
+//!
+//! The socket subscribes to the kernel's error frames (`CAN_ERR_FLAG`): each is classified
+//! ([`classify_error_frame`]); bus-off ends the link's receive with [`LinkError::BusOff`]
+//! (the controller has left the bus, the run cannot go on), any other error condition
+//! (error-passive, no ACK, a protocol violation, a lost arbitration) is counted
+//! ([`SocketCanPort::error_frames`]) and receiving goes on.
 
 use std::io;
 
 use socketcan::id::FdFlags;
-use socketcan::{CanAnyFrame, EmbeddedFrame, Id, tokio::CanFdSocket};
+use socketcan::{
+    CanAnyFrame, CanErrorFrame, EmbeddedFrame, ErrorCause, Id, SocketOptions, tokio::CanFdSocket,
+};
 
 use super::error::{LinkError, LinkResult};
 use crate::can::{CanFrame, CanId, FrameFormat};
@@ -16,6 +24,29 @@ use crate::can::{CanFrame, CanId, FrameFormat};
 pub struct SocketCanPort {
     name: String,
     socket: CanFdSocket,
+    error_frames: u64,
+}
+
+/// What an error frame from the kernel means for the loop.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum BusEvent {
+    /// The controller went bus-off: it takes no part in the bus any more (the kernel's
+    /// description).
+    BusOff(String),
+    /// Any other error condition: counted, the bus goes on (the kernel's description).
+    Error(String),
+}
+
+/// Classifies an error frame: bus-off, or another error condition.
+#[must_use]
+pub fn classify_error_frame(frame: &CanErrorFrame) -> BusEvent {
+    let error = frame.into_error();
+    let description = error.to_string();
+    if error.causes().any(|cause| *cause == ErrorCause::BusOff) {
+        BusEvent::BusOff(description)
+    } else {
+        BusEvent::Error(description)
+    }
 }
 
 impl SocketCanPort {
@@ -30,10 +61,24 @@ impl SocketCanPort {
             hint: open_hint(iface, &source),
             source,
         })?;
+        socket
+            .set_error_filter_accept_all()
+            .map_err(|source| LinkError::Open {
+                link: name.to_owned(),
+                hint: "; subscribing to the bus's error frames".to_owned(),
+                source,
+            })?;
         Ok(SocketCanPort {
             name: name.to_owned(),
             socket,
+            error_frames: 0,
         })
+    }
+
+    /// Error frames received so far (bus-off included).
+    #[must_use]
+    pub fn error_frames(&self) -> u64 {
+        self.error_frames
     }
 
     /// Sends one frame, waiting while the socket's queue is full.
@@ -51,32 +96,48 @@ impl SocketCanPort {
             .map_err(|source| self.io("write", source))
     }
 
-    /// Waits for the next data, remote or FD frame. Cancel-safe.
+    /// Waits for the next data, remote or FD frame; error frames are counted. Cancel-safe.
     ///
     /// # Errors
-    /// [`LinkError::Io`] when the socket fails (interface gone: "Network is down").
-    pub async fn recv(&self) -> LinkResult<CanFrame> {
+    /// [`LinkError::Io`] when the socket fails (interface gone: "Network is down");
+    /// [`LinkError::BusOff`] when the controller went bus-off.
+    pub async fn recv(&mut self) -> LinkResult<CanFrame> {
         loop {
             let frame = self
                 .socket
                 .read_frame()
                 .await
                 .map_err(|source| self.io("read", source))?;
-            if let Some(frame) = from_socketcan(&frame) {
+            if let Some(frame) = self.accept(&frame)? {
                 return Ok(frame);
             }
         }
+    }
+
+    /// A data, remote or FD frame as ours; an error frame counted (bus-off: the error).
+    fn accept(&mut self, frame: &CanAnyFrame) -> LinkResult<Option<CanFrame>> {
+        if let CanAnyFrame::Error(error) = frame {
+            self.error_frames += 1;
+            if let BusEvent::BusOff(detail) = classify_error_frame(error) {
+                return Err(LinkError::BusOff {
+                    link: self.name.clone(),
+                    detail,
+                });
+            }
+            return Ok(None);
+        }
+        Ok(from_socketcan(frame))
     }
 
     /// The next frame if one is already there, without waiting.
     ///
     /// # Errors
     /// As [`SocketCanPort::recv`].
-    pub fn try_recv(&self) -> LinkResult<Option<CanFrame>> {
+    pub fn try_recv(&mut self) -> LinkResult<Option<CanFrame>> {
         loop {
             match self.socket.try_read_frame() {
                 Ok(frame) => {
-                    if let Some(frame) = from_socketcan(&frame) {
+                    if let Some(frame) = self.accept(&frame)? {
                         return Ok(Some(frame));
                     }
                 }
@@ -169,5 +230,41 @@ mod tests {
         for frame in frames {
             assert_eq!(from_socketcan(&to_socketcan(&frame).unwrap()), Some(frame));
         }
+    }
+
+    /// `CAN_ERR_BUSOFF` in an error frame's id (linux/can/error.h).
+    const CAN_ERR_BUSOFF: u32 = 0x40;
+    /// `CAN_ERR_CRTL`: controller problems, detailed in data byte 1.
+    const CAN_ERR_CRTL: u32 = 0x04;
+    /// `CAN_ERR_CRTL_RX_PASSIVE` in data byte 1.
+    const CAN_ERR_CRTL_RX_PASSIVE: u8 = 0x10;
+    /// `CAN_ERR_ACK`: no acknowledgement on transmission.
+    const CAN_ERR_ACK: u32 = 0x20;
+
+    #[test]
+    fn bus_off_is_told_apart_from_the_other_error_frames() {
+        let bus_off = CanErrorFrame::new_error(CAN_ERR_BUSOFF, &[]).unwrap();
+        assert!(matches!(
+            classify_error_frame(&bus_off),
+            BusEvent::BusOff(text) if text.contains("bus off")
+        ));
+        let passive =
+            CanErrorFrame::new_error(CAN_ERR_CRTL, &[0, CAN_ERR_CRTL_RX_PASSIVE]).unwrap();
+        let no_ack = CanErrorFrame::new_error(CAN_ERR_ACK, &[]).unwrap();
+        for frame in [passive, no_ack] {
+            assert!(
+                matches!(classify_error_frame(&frame), BusEvent::Error(_)),
+                "{frame:?}"
+            );
+        }
+        // Several causes at once: bus-off wins.
+        let both = CanErrorFrame::new_error(CAN_ERR_ACK | CAN_ERR_BUSOFF, &[]).unwrap();
+        assert!(matches!(classify_error_frame(&both), BusEvent::BusOff(_)));
+    }
+
+    #[test]
+    fn error_frames_are_never_taken_for_data() {
+        let frame = CanAnyFrame::Error(CanErrorFrame::new_error(CAN_ERR_ACK, &[]).unwrap());
+        assert_eq!(from_socketcan(&frame), None);
     }
 }

@@ -1,0 +1,208 @@
+//! Peers that stop reading: no write may block the safety logic. A host that stops reading
+//! the mirror's link gets the emulator's coils zeroed and a reason; a sensor line nobody reads
+//! never stalls the mirror; a node that stops reading ends the scan with exit 3 and a reason.
+
+use std::time::Duration;
+
+use scanhil_protocol::link::{CanLink, PtyPair, Role};
+use scanhil_protocol::message::{AngleReading, CoilCommand, Message};
+use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
+
+use crate::controller_watchdog::assert_stopped_cleanly;
+use crate::util::{ServedEmulator, SlcanHost, fixture, scanhil, start_scan_of_node};
+
+/// The current: 1.5 A on both coils when the host stops reading.
+const HELD_A: f64 = 1.5;
+
+/// CoilCommand(k) at [`HELD_A`] and Step(k): one lockstep period.
+fn period(k: u32) -> Vec<Message> {
+    vec![
+        Message::CoilCommand(CoilCommand::from_amps(
+            k as u16,
+            ActuatorPair {
+                a: HELD_A,
+                b: HELD_A,
+            },
+        )),
+        Message::Step { step: k },
+    ]
+}
+
+/// Runs lockstep periods `0..n` and waits for each AngleReading.
+fn exchange(host: &mut SlcanHost, periods: std::ops::Range<u32>) {
+    for k in periods {
+        for message in period(k) {
+            host.send(&message);
+        }
+        loop {
+            match host.recv(Duration::from_secs(10)) {
+                Some(Message::AngleReading(reading)) if reading.seq == k as u16 => break,
+                Some(_) => {}
+                None => panic!("no AngleReading for period {k}"),
+            }
+        }
+    }
+}
+
+/// Runs 10 periods at [`HELD_A`] in `timing`, then the host keeps commanding but never reads
+/// again: the node's answers fill the line and its writes can go nowhere, the line stays
+/// open. The node must zero its coils, say why and exit 3 within its 1 s watchdog
+/// allowance, the 2 s linger and a loaded machine's slack.
+fn a_host_that_stops_reading(timing: &str, watchdog_periods: &str, allowance_s: &str) {
+    let emulator = ServedEmulator::start(&[
+        "--scene",
+        &fixture("scenes/step-alpha.json"),
+        "--fsm",
+        "slcan:pty",
+        "--timing",
+        timing,
+        "--watchdog-periods",
+        watchdog_periods,
+        "--lockstep-answer-allowance-s",
+        allowance_s,
+    ]);
+    let mut host = SlcanHost::open(&emulator.path("fsm"));
+    exchange(&mut host, 0..10);
+    host.stop_reading();
+    let writer = host.spawn_blind_writer(10, period);
+    // Without the write deadline the node stays blocked in its write (lockstep) or keeps
+    // dropping its frames (real time) for ever, with 1.5 A on the coils.
+    let (code, summary) = emulator.finish(Duration::from_secs(20));
+    assert_eq!(code, Some(3), "exit status 3: {summary}");
+    assert_eq!(summary["ended_by"], "host_stopped_reading", "{summary}");
+    assert_eq!(summary["final_state"], "fault", "{summary}");
+    assert_eq!(summary["held_coil_currents_a"]["a"], 0.0, "{summary}");
+    assert_eq!(summary["held_coil_currents_a"]["b"], 0.0, "{summary}");
+    assert!(
+        summary["error"]
+            .as_str()
+            .is_some_and(|e| e.contains("stopped reading")),
+        "the summary says why: {summary}"
+    );
+    assert!(
+        summary["node"]["periods"].as_u64().is_some_and(|p| p > 10),
+        "the node ran past the host's last read: {summary}"
+    );
+    drop(host);
+    let stopped_at = writer.join().expect("the writer thread");
+    assert!(stopped_at > 10, "the host wrote blind periods");
+}
+
+#[test]
+fn a_lockstep_host_that_stops_reading_gets_zero_coils_and_a_reason() {
+    // 20 x 50 ms = 1 s: the node's watchdog, and how long a period's answers may take to go out.
+    a_host_that_stops_reading("lockstep", "20", "0.05");
+}
+
+#[test]
+fn a_real_time_host_that_stops_reading_gets_zero_coils_and_a_reason() {
+    // 20 000 periods of 50 us = 1 s of wall time without a period's frames going out.
+    a_host_that_stops_reading("realtime", "20000", "0.05");
+}
+
+#[test]
+fn a_sensor_line_nobody_reads_never_stalls_the_mirror() {
+    // The sensor at 20 kHz sends one 6-byte cycle per period: a pty's buffer (a few kB) fills
+    // within a thousand periods, and a blocking sensor write would stop the mirror there.
+    let periods = 8000u32;
+    let emulator = ServedEmulator::start(&[
+        "--scene",
+        &fixture("scenes/protocol-only.json"),
+        "--fsm",
+        "slcan:pty",
+        "--sensor",
+        "ild:pty",
+    ]);
+    let mut host = SlcanHost::open(&emulator.path("fsm"));
+    exchange(&mut host, 0..periods);
+    host.write_line("C");
+    let (code, summary) = emulator.finish(Duration::from_secs(20));
+    assert_eq!(code, Some(0), "{summary}");
+    assert_eq!(summary["node"]["periods"], periods, "{summary}");
+    let sensor = &summary["sensor"];
+    let sent = sensor["samples"].as_u64().expect("samples sent");
+    let dropped = sensor["dropped_cycles"].as_u64().expect("cycles dropped");
+    assert!(dropped > 0, "the full line dropped cycles: {sensor}");
+    assert_eq!(
+        sent + dropped,
+        u64::from(periods),
+        "one sample per period, sent or dropped: {sensor}"
+    );
+}
+
+/// A mirror node that stops reading, on a pty the test holds: it opens the channel for the
+/// host (answering `C`, `Sn`, `O`), then sends AngleReading(j) for j = 0, 1, ... as fast as
+/// the line takes them and never reads again, for at most `limit`. Returns how many it sent.
+fn spawn_deaf_node(pair: PtyPair, limit: Duration) -> std::thread::JoinHandle<u64> {
+    std::thread::spawn(move || {
+        let runtime = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .expect("a runtime");
+        runtime.block_on(async move {
+            let started = tokio::time::Instant::now();
+            let mut link = CanLink::open_pty(pair, None, Role::Device)
+                .await
+                .expect("the device end");
+            while !link.channel_open() {
+                if link.recv_timeout(Duration::from_millis(10)).await.is_err()
+                    || started.elapsed() > limit
+                {
+                    return 0;
+                }
+            }
+            let mut sent = 0u64;
+            while started.elapsed() < limit {
+                let reading = Message::AngleReading(AngleReading::from_rad(
+                    sent as u16,
+                    SensingPair::default(),
+                ))
+                .encode()
+                .expect("encodable");
+                match tokio::time::timeout(Duration::from_millis(100), link.send(&reading)).await {
+                    Ok(Ok(())) => sent += 1,
+                    Ok(Err(_hang_up)) => break,
+                    Err(_line_full) => {}
+                }
+            }
+            sent
+        })
+    })
+}
+
+#[test]
+fn a_node_that_stops_reading_stops_the_scan_with_exit_3() {
+    // Built (if need be) before the node's clock starts.
+    let scanhil = scanhil();
+    let pair = PtyPair::open().expect("a pty pair");
+    let fsm = format!("slcan:{}", pair.slave_path().display());
+    let node = spawn_deaf_node(pair, Duration::from_secs(60));
+    let out = tempfile::tempdir().expect("a temporary folder");
+    // 20 000 periods of 50 us = 1 s: how long a write may wait for the node to read.
+    let mut child = start_scan_of_node(&scanhil, &fsm, "realtime", 60.0, 20_000, out.path());
+    // Bound: the 1 s write allowance, the closing exchange's wait, and a loaded machine's
+    // slack. Without the write deadline the host stays blocked in its write for ever.
+    let deadline = std::time::Instant::now() + Duration::from_secs(30);
+    while child.try_wait().expect("waiting for scanhil").is_none() {
+        if std::time::Instant::now() > deadline {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("scanhil still blocked 30 s after the node stopped reading");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let output = child.wait_with_output().expect("scanhil's output");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    // Exit 3, the reason on stderr and in the report, a recording that decodes; the zero
+    // command cannot go out on a line the node does not read.
+    assert_stopped_cleanly(
+        output.status.code(),
+        &stderr,
+        &out,
+        "the node stopped reading",
+        false,
+    );
+    drop(out);
+    // The node's thread ends once the host has gone (hang-up) or at its limit.
+    assert!(node.join().expect("the node thread") > 100);
+}
