@@ -13,6 +13,8 @@
 //! - [`candump`]: candump `-L` log lines, reader and writer (classical and FD).
 //! - [`dbc`]: the DBC file rendered from the message table (`protocol/scanhil.dbc`).
 //! - [`ild`]: the ILD 2300 sensor: RS422 values, the L/M/H byte stream, ASCII commands.
+//! - [`error_text`]: an error and its causes on one line, each said once (the programs'
+//!   error line).
 //! - [`loop_timing`]: period jitter and overruns of a real-time loop, as both ends report them.
 //! - `link` (cargo feature `links`): the real transports: SocketCAN, SLCAN over a serial port or
 //!   pty, the ILD stream over a serial port or pty; link URIs, pty pairs, capture, watchdog.
@@ -21,6 +23,7 @@ pub mod bus_load;
 pub mod can;
 pub mod candump;
 pub mod dbc;
+pub mod error_text;
 pub mod ild;
 #[cfg(feature = "links")]
 pub mod link;

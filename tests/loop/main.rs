@@ -27,3 +27,5 @@ mod rig_alone;
 mod interrupted;
 // The output folder: one scan at a time, no stale files after a re-scan.
 mod out_folder;
+// Bad values refused or warned about before a run; an OS error said once.
+mod bad_input;

@@ -455,10 +455,32 @@ pub async fn finish_emulator(
         .filter_map(|line| serde_json::from_str::<serde_json::Value>(&line).ok())
         .find(|value| value["event"] == "summary")
         .unwrap_or(serde_json::Value::Null);
-    let exit_status = status.and_then(|s| s.code());
-    Ok(
-        serde_json::json!({ "exit_status": exit_status, "killed": status.is_none(), "summary": summary }),
-    )
+    Ok(emulator_end_json(status, summary))
+}
+
+/// The emulator's end in report.json: `exit_status` (its code, `null` when a signal ended
+/// it), `killed` (a signal ended it, whoever sent it), `signal` (its name), `killed_by_host`
+/// (this run killed it after the grace period) and its `summary` line (`null` without one).
+fn emulator_end_json(
+    status: Option<std::process::ExitStatus>,
+    summary: serde_json::Value,
+) -> serde_json::Value {
+    use std::os::unix::process::ExitStatusExt;
+    let (exit_status, signal, killed_by_host) = match status {
+        Some(status) => (status.code(), status.signal(), false),
+        None => (None, Some(nix::libc::SIGKILL), true),
+    };
+    let signal_name = signal.map(|number| {
+        nix::sys::signal::Signal::try_from(number)
+            .map_or_else(|_| format!("signal {number}"), |s| s.as_str().to_owned())
+    });
+    serde_json::json!({
+        "exit_status": exit_status,
+        "killed": signal.is_some(),
+        "signal": signal_name,
+        "killed_by_host": killed_by_host,
+        "summary": summary,
+    })
 }
 
 /// What an emulator serves, as its ready line states it: the control period and the

@@ -207,6 +207,7 @@ pub fn write(
             "period_s": record.angles.period_s(),
             "saturated": record.saturated_periods,
             "saturated_in_frame": record.saturated_periods - record.saturated_in_lead_in,
+            "planned_saturated_share": plan.planned_saturated_share,
         },
         "timing": {
             "mode": scenario.timing.mode,
