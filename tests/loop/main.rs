@@ -29,3 +29,5 @@ mod interrupted;
 mod out_folder;
 // Bad values refused or warned about before a run; an OS error said once.
 mod bad_input;
+// Outputs that cannot be written (a full disk, a directory in the way): the others are.
+mod output_failures;
