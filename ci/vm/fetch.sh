@@ -127,7 +127,16 @@ module_list() {
 # else the compressed vmlinuz), `version`, and modules/<path> for every entry of modules.txt.
 prepare_kernel() {
     local dir=$VM_CACHE/kernel
-    unpacked_complete "$dir" && return 0
+    if unpacked_complete "$dir"; then
+        # A module added to modules.txt since the cache was filled: unpack again (from the
+        # cached package, offline).
+        local listed missing=()
+        while read -r listed; do
+            [[ -f $dir/modules/$listed ]] || missing+=("$listed")
+        done < <(module_list)
+        ((${#missing[@]} == 0)) && return 0
+        say "the kernel cache has no ${missing[*]} (added to ci/vm/modules.txt since it was filled): unpacking the kernel package again"
+    fi
     local package deb
     package=$(kernel_package_name)
     deb=$(fetch_debs "$package")

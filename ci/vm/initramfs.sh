@@ -45,6 +45,8 @@ base_initramfs() {
         {
             cat "$VM_DIR/init" "$VM_DIR/modules.txt" "$VM_DIR/initramfs.sh" "$VM_CACHE/kernel/version" \
                 "$VM_CACHE/userland/.complete"
+            # The programs it carries (listed in fetch.sh, which is not in the key).
+            printf 'can-utils: %s\n' "${CAN_UTILS_PROGRAMS[*]}"
             stat -L -c '%n %s %Y' "$bash_path" "$ip_path" "${libraries[@]}"
         } | sha256sum | cut -c1-16
     )
@@ -145,6 +147,8 @@ build_initramfs() {
     local version module
     version=$(<"$VM_CACHE/kernel/version")
     while read -r module; do
+        [[ -f $VM_CACHE/kernel/modules/$module ]] ||
+            die "the kernel cache $VM_CACHE/kernel has no module $module (listed in ci/vm/modules.txt); run again with SCANHIL_VM_REFRESH=1 or delete that folder"
         mkdir -p "$root/usr/lib/modules/$version/kernel/${module%/*}"
         cp "$VM_CACHE/kernel/modules/$module" "$root/usr/lib/modules/$version/kernel/$module"
         printf '/lib/modules/%s/kernel/%s\n' "$version" "$module"

@@ -51,7 +51,10 @@ fn main() -> ExitCode {
     match result {
         Ok(code) => code,
         Err(err) => {
-            eprintln!("scanhil: error: {err:#}");
+            eprintln!(
+                "scanhil: error: {}",
+                scanhil_protocol::error_text::chain_text(&*err)
+            );
             ExitCode::FAILURE
         }
     }

@@ -16,11 +16,13 @@
 use std::f64::consts::{FRAC_1_SQRT_2, TAU};
 
 use nalgebra::Complex;
-use scanhil_protocol::plant_units::{AMPS_PER_INPUT_UNIT, RAD_PER_OUTPUT_UNIT};
+use scanhil_protocol::plant_units::{
+    AMPS_PER_INPUT_UNIT, RAD_PER_OUTPUT_UNIT, SensingPair, actuator_from_sensing,
+};
 
 use crate::loop_analysis::NominalLoop;
-use crate::rig::RigMirror;
-use crate::trajectory::{Tone, Trajectory};
+use crate::rig::{RigCrossTalk, RigMirror};
+use crate::trajectory::{Tone, Trajectory, swept_sine_phase};
 
 /// Below this frequency a tone is evaluated here instead (a controller with an integrator has
 /// no finite response at 0 Hz; its effort there is `1 / G(0)`), Hz.
@@ -65,15 +67,10 @@ pub fn estimate_tones(
     mirror: &RigMirror,
     effort: &dyn Fn(f64) -> Complex<f64>,
 ) -> PowerEstimate {
-    let c = mirror.cross_talk;
-    let det = 1.0 - c.alpha_from_beta * c.beta_from_alpha;
     let (mut alpha_sq, mut beta_sq, mut peak_a, mut peak_b) = (0.0, 0.0, 0.0, 0.0);
     let (mut peak_alpha, mut peak_beta) = (0.0, 0.0);
     for tone in tones {
-        let e = effort(tone.f_hz);
-        let (v_alpha, v_beta) = (e * tone.alpha_rad, e * tone.beta_rad);
-        let u_alpha = (v_alpha - v_beta * c.alpha_from_beta) / det;
-        let u_beta = (v_beta - v_alpha * c.beta_from_alpha) / det;
+        let (u_alpha, u_beta) = sensing_currents(tone, &mirror.cross_talk, effort);
         let weight = if tone.f_hz > 0.0 { 0.5 } else { 1.0 };
         alpha_sq += weight * u_alpha.norm_sqr();
         beta_sq += weight * u_beta.norm_sqr();
@@ -92,6 +89,105 @@ pub fn estimate_tones(
         tones: tones.len(),
         worst_hz: None,
     }
+}
+
+/// The currents (A phasors) on the sensing axes' inputs that make `tone` through `effort`,
+/// with the mirror's `cross_talk` undone by the loop (`u = M^-1 v`).
+fn sensing_currents(
+    tone: &Tone,
+    cross_talk: &RigCrossTalk,
+    effort: &dyn Fn(f64) -> Complex<f64>,
+) -> (Complex<f64>, Complex<f64>) {
+    let c = cross_talk;
+    let det = 1.0 - c.alpha_from_beta * c.beta_from_alpha;
+    let e = effort(tone.f_hz);
+    let (v_alpha, v_beta) = (e * tone.alpha_rad, e * tone.beta_rad);
+    (
+        (v_alpha - v_beta * c.alpha_from_beta) / det,
+        (v_beta - v_alpha * c.beta_from_alpha) / det,
+    )
+}
+
+/// The command limits the planned drive is held against ([`saturated_share`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DriveLimits {
+    /// The controller's command limit per sensing axis, A.
+    pub axis_a: f64,
+    /// The coil current limit (each actuator coil), A.
+    pub coil_a: f64,
+}
+
+/// Instants sampled over a frame by [`saturated_share`] at most.
+const SATURATION_SAMPLES: usize = 100_000;
+
+/// The share of a frame of `duration_s` in which the steady-state drive of `trajectory`
+/// (through `effort`, with `cross_talk` undone) is beyond `limits`: an axis command at or
+/// over its limit, or a coil current over the coil limit, as the controller counts a saturated
+/// period. Sampled at the control period (`period_s`), or at 100 000 evenly
+/// spread instants over a longer frame; a swept sine at its instantaneous frequency. Linear
+/// like [`estimate`]: the start-up transient is not in it.
+#[must_use]
+pub fn saturated_share(
+    trajectory: &Trajectory,
+    cross_talk: &RigCrossTalk,
+    effort: &dyn Fn(f64) -> Complex<f64>,
+    limits: DriveLimits,
+    period_s: f64,
+    duration_s: f64,
+) -> f64 {
+    let nyquist_hz = 0.5 / period_s;
+    let samples = ((duration_s / period_s).round() as usize).clamp(1, SATURATION_SAMPLES);
+    let step_s = duration_s / samples as f64;
+    // Each tone with its currents, when they do not change over the frame.
+    let fixed: Vec<(f64, Complex<f64>, Complex<f64>)> = match trajectory {
+        Trajectory::SweptSine { .. } => Vec::new(),
+        _ => trajectory
+            .tones(nyquist_hz)
+            .iter()
+            .map(|tone| {
+                let (alpha, beta) = sensing_currents(tone, cross_talk, effort);
+                (tone.f_hz, alpha, beta)
+            })
+            .collect(),
+    };
+    let currents_at = |t_s: f64| -> (f64, f64) {
+        let rotate = |phase: f64, (alpha, beta): (Complex<f64>, Complex<f64>)| {
+            let turn = Complex::from_polar(1.0, phase);
+            ((alpha * turn).re, (beta * turn).re)
+        };
+        match *trajectory {
+            Trajectory::SweptSine {
+                axis,
+                start_hz,
+                stop_hz,
+                duration_s: sweep_s,
+                amplitude_rad,
+            } => {
+                if t_s > sweep_s {
+                    return (0.0, 0.0);
+                }
+                let ratio = (stop_hz / start_hz).powf(t_s / sweep_s);
+                let tone = Tone::sine(axis, start_hz * ratio, amplitude_rad, 0.0);
+                let phase = swept_sine_phase(start_hz, stop_hz, sweep_s, t_s);
+                rotate(phase, sensing_currents(&tone, cross_talk, effort))
+            }
+            _ => fixed
+                .iter()
+                .map(|&(f_hz, alpha, beta)| rotate(TAU * f_hz * t_s, (alpha, beta)))
+                .fold((0.0, 0.0), |(a, b), (da, db)| (a + da, b + db)),
+        }
+    };
+    let saturated = (0..samples)
+        .filter(|&k| {
+            let (alpha, beta) = currents_at((k as f64 + 1.0) * step_s);
+            let coils = actuator_from_sensing(SensingPair { alpha, beta });
+            alpha.abs() >= limits.axis_a
+                || beta.abs() >= limits.axis_a
+                || coils.a.abs() > limits.coil_a
+                || coils.b.abs() > limits.coil_a
+        })
+        .count();
+    saturated as f64 / samples as f64
 }
 
 /// The steady-state mean coil power of `trajectory` into `mirror`'s coils, with `effort` the

@@ -359,6 +359,59 @@ fn centre_spacing(f_hz: f64, phase_rad: f64, period_s: f64, other: impl Fn(f64) 
 }
 
 impl Trajectory {
+    /// Checks the frequencies against a loop of Nyquist frequency `nyquist_hz` (half the
+    /// control rate): each positive, finite and below Nyquist (a reference at or above it
+    /// aliases: sampled at the control rate, 1e7 Hz on a 20 kHz loop is a constant). On
+    /// failure the field (as in the scenario file, `trajectory.alpha_hz`) and why, with the
+    /// value and the limit. (Amplitudes too large for the mirror are the power check's and the
+    /// planned saturation's: [`crate::run::plan`].)
+    ///
+    /// # Errors
+    /// The first frequency out of range.
+    pub fn check(&self, nyquist_hz: f64) -> Result<(), (&'static str, String)> {
+        let frequencies = match *self {
+            Trajectory::Lissajous {
+                alpha_hz, beta_hz, ..
+            } => vec![
+                ("trajectory.alpha_hz", alpha_hz),
+                ("trajectory.beta_hz", beta_hz),
+            ],
+            Trajectory::Raster {
+                slow_hz, fast_hz, ..
+            } => vec![
+                ("trajectory.slow_hz", slow_hz),
+                ("trajectory.fast_hz", fast_hz),
+            ],
+            Trajectory::Step { .. } => vec![],
+            Trajectory::Sine { frequency_hz, .. } => {
+                vec![("trajectory.frequency_hz", frequency_hz)]
+            }
+            Trajectory::SweptSine {
+                start_hz, stop_hz, ..
+            } => vec![
+                ("trajectory.start_hz", start_hz),
+                ("trajectory.stop_hz", stop_hz),
+            ],
+        };
+        for (field, f_hz) in frequencies {
+            if !(f_hz.is_finite() && f_hz > 0.0) {
+                return Err((field, format!("{f_hz} Hz must be positive and finite")));
+            }
+            if f_hz >= nyquist_hz {
+                return Err((
+                    field,
+                    format!(
+                        "{f_hz} Hz is at or above {nyquist_hz} Hz, the Nyquist frequency of the \
+                         {} Hz control rate: sampled by the loop it aliases to another \
+                         frequency (or a constant)",
+                        2.0 * nyquist_hz
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// The same trajectory with every amplitude multiplied by `factor` (frequencies, phases
     /// and timing unchanged): what the power budget's `shrink` runs.
     #[must_use]

@@ -38,7 +38,10 @@ fn main() -> ExitCode {
     match result {
         Ok(code) => code,
         Err(err) => {
-            eprintln!("scanhil-emulator: error: {err:#}");
+            eprintln!(
+                "scanhil-emulator: error: {}",
+                scanhil_protocol::error_text::chain_text(&*err)
+            );
             ExitCode::FAILURE
         }
     }

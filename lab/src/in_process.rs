@@ -21,6 +21,7 @@ use scanhil_controller::run::host_loop::{Heard, HostAction, HostLoop, LoopError}
 use scanhil_controller::run::link_faults::LinkFaults;
 use scanhil_controller::run::out_folder::OutputFolder;
 use scanhil_controller::run::output::{self, RunData};
+use scanhil_controller::run::output_failures::OutputFailures;
 use scanhil_controller::run::pairing::SensorClock;
 use scanhil_controller::run::plan::{PlanSummary, ScanPlan};
 use scanhil_controller::run::scenario::{NodeLink, Scenario, TimingMode};
@@ -78,15 +79,22 @@ impl InProcessOutcome {
     /// into `out_dir`; returns how the run ended.
     ///
     /// # Errors
-    /// A file that cannot be written.
+    /// A file that cannot be written (all of them named, after the others were written).
     pub fn write(&self, out_dir: &Path) -> anyhow::Result<ScanEnd> {
-        output::write(
+        let result = output::write(
             &self.scenario,
             &self.plan,
             &self.run,
             self.sensor_clock,
             out_dir,
-        )
+        )?;
+        anyhow::ensure!(
+            result.failed_outputs.is_empty(),
+            "{}: outputs not written: {}",
+            out_dir.display(),
+            result.failed_outputs
+        );
+        Ok(result.end)
     }
 }
 
@@ -281,6 +289,7 @@ pub fn run_probed(
             emulator_summary: Some(node_summary),
             frame_faults,
             run_time_s: started.elapsed().as_secs_f64(),
+            failed_recordings: OutputFailures::default(),
             sensor_setup: serves_sensor.then(|| SensorSetupReport::Skipped {
                 reason: "in process: the emulated sensor starts as the loop needs it; there is \
                          no ASCII line to configure it over"

@@ -15,6 +15,8 @@
 //!   bit flip), seeded and deterministic, with a ledger of every frame.
 //! - [`dbc`]: the DBC file rendered from the message table (`protocol/scanhil.dbc`).
 //! - [`ild`]: the ILD 2300 sensor: RS422 values, the L/M/H byte stream, ASCII commands.
+//! - [`error_text`]: an error and its causes on one line, each said once (the programs'
+//!   error line).
 //! - [`loop_timing`]: period jitter and overruns of a real-time loop, as both ends report them.
 //! - `link` (cargo feature `links`): the real transports: SocketCAN, SLCAN over a serial port or
 //!   pty, the ILD stream over a serial port or pty; link URIs, pty pairs, capture, watchdog.
@@ -23,6 +25,7 @@ pub mod bus_load;
 pub mod can;
 pub mod candump;
 pub mod dbc;
+pub mod error_text;
 pub mod fault_injection;
 pub mod ild;
 #[cfg(feature = "links")]

@@ -6,7 +6,10 @@ use std::time::{Duration, Instant};
 
 use scanhil_protocol::message::Message;
 
-use crate::util::{decode_candump, recording_grows, report, scan_against_served_emulator, signal};
+use crate::util::{
+    children, decode_candump, recording_grows, report, scan_against_served_emulator, signal,
+    start_long_scan,
+};
 
 /// Runs a long scan against a hand-started emulator with the scan's watchdog at
 /// `watchdog_periods` (of the scenario's 50 ms allowance), sends the emulator `signal_name`
@@ -120,5 +123,32 @@ fn a_killed_emulator_stops_the_scan_with_a_hang_up() {
     assert!(
         detected_within < Duration::from_secs(10),
         "the scan ended {detected_within:?} after the kill"
+    );
+}
+
+#[test]
+fn an_emulator_killed_mid_scan_is_reported_as_killed_by_its_signal() {
+    // The emulator the scan started itself is SIGKILLed by someone else mid-scan: the scan
+    // stops (hang-up, exit 3) and report.json says the emulator was killed, and by what.
+    let out = tempfile::tempdir().expect("a temporary folder");
+    let scan = start_long_scan(out.path(), 10_000);
+    let emulators = children(scan.id());
+    assert_eq!(
+        emulators.len(),
+        1,
+        "one emulator under the scan: {emulators:?}"
+    );
+    signal(emulators[0], "KILL");
+    let output = scan.wait_with_output().expect("waiting for scanhil");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(3), "{stderr}");
+    let emulator = &report(out.path())["emulator"];
+    assert_eq!(emulator["killed"], true, "{emulator}");
+    assert_eq!(emulator["signal"], "SIGKILL", "{emulator}");
+    assert_eq!(emulator["killed_by_host"], false, "{emulator}");
+    assert_eq!(
+        emulator["exit_status"],
+        serde_json::Value::Null,
+        "{emulator}"
     );
 }

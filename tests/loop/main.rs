@@ -40,3 +40,7 @@ mod faults;
 // Real-time options: busy-poll and pinning reported with the wake-up probe and who missed;
 // SCHED_FIFO without the privilege warns and goes on.
 mod realtime_options;
+// Bad values refused or warned about before a run; an OS error said once.
+mod bad_input;
+// Outputs that cannot be written (a full disk, a directory in the way): the others are.
+mod output_failures;

@@ -21,7 +21,7 @@ use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::candump;
 use scanhil_protocol::ild::{IldDecoder, IldValue, MeasuringRange};
 use scanhil_protocol::message::{MessageError, decode_signals};
-use scanhil_protocol::slcan::{SlcanDecoder, SlcanMessage};
+use scanhil_protocol::slcan::{BEL, CR, SlcanDecoder, SlcanMessage};
 use serde_json::{Value, json};
 
 /// The input formats.
@@ -52,20 +52,88 @@ pub struct Args {
     pub measuring_range_span_mm: f64,
 }
 
-/// Counts what went wrong while decoding, and says it on stderr.
+/// Lines [`Report`] writes to stderr at most; past that the items are counted, not shown.
+const MAX_SHOWN: u64 = 1000;
+
+/// Bytes of a bad line an error quotes at most (the byte count says how long it was).
+const MAX_QUOTED: usize = 80;
+
+/// The longest candump line read whole: a CAN FD frame with 64 data bytes, a nanosecond
+/// timestamp and a long interface name are well under it. A longer line is skipped without
+/// being held.
+const MAX_CANDUMP_LINE: usize = 1024;
+
+/// Counts what went wrong while decoding, and says it on stderr: buffered, at most
+/// [`MAX_SHOWN`] lines (a megabyte of garbage must not turn into gigabytes of messages).
 struct Report {
     source: String,
     malformed: u64,
+    shown: u64,
+    stderr: Box<dyn Write>,
 }
 
 impl Report {
-    fn malformed(&mut self, what: impl std::fmt::Display) {
-        self.malformed += 1;
-        eprintln!("scanhil decode: {}: {what}", self.source);
+    fn new(source: String) -> Report {
+        Report::writing_to(source, Box::new(BufWriter::new(std::io::stderr())))
     }
 
-    fn notice(&self, what: impl std::fmt::Display) {
-        eprintln!("scanhil decode: {}: {what}", self.source);
+    fn writing_to(source: String, stderr: Box<dyn Write>) -> Report {
+        Report {
+            source,
+            malformed: 0,
+            shown: 0,
+            stderr,
+        }
+    }
+
+    fn malformed(&mut self, what: impl std::fmt::Display) {
+        self.malformed += 1;
+        self.say(what);
+    }
+
+    fn notice(&mut self, what: impl std::fmt::Display) {
+        self.say(what);
+    }
+
+    /// One line on stderr, while fewer than [`MAX_SHOWN`] were written. Write errors are
+    /// ignored: stderr is where they would be said.
+    fn say(&mut self, what: impl std::fmt::Display) {
+        self.shown += 1;
+        let _ = if self.shown <= MAX_SHOWN {
+            writeln!(self.stderr, "scanhil decode: {}: {what}", self.source)
+        } else if self.shown == MAX_SHOWN + 1 {
+            writeln!(
+                self.stderr,
+                "scanhil decode: {}: more than {MAX_SHOWN} messages: the rest are counted, not \
+                 shown",
+                self.source
+            )
+        } else {
+            Ok(())
+        };
+    }
+
+    /// The closing count, and everything buffered out.
+    fn finish(&mut self) {
+        if self.malformed > 0 {
+            let _ = writeln!(
+                self.stderr,
+                "scanhil decode: {}: {} malformed item(s)",
+                self.source, self.malformed
+            );
+        }
+        let _ = self.stderr.flush();
+    }
+}
+
+/// At most [`MAX_QUOTED`] bytes of a line (`start`, its first bytes) for an error message,
+/// with its whole `length` when cut: `"t12xx"... (1048576 bytes)`.
+fn quoted(start: &[u8], length: usize) -> String {
+    let shown = String::from_utf8_lossy(&start[..start.len().min(MAX_QUOTED)]).into_owned();
+    if length <= MAX_QUOTED && start.len() == length {
+        format!("{shown:?}")
+    } else {
+        format!("{shown:?}... ({length} bytes)")
     }
 }
 
@@ -86,25 +154,20 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         range.span_mm.is_finite() && range.span_mm > 0.0 && range.start_mm.is_finite(),
         "--measuring-range-span-mm must be a positive number and the start finite"
     );
-    let mut report = Report {
-        source,
-        malformed: 0,
+    let mut report = Report::new(source);
+    let mut out = BufWriter::with_capacity(1 << 16, std::io::stdout().lock());
+    let reader = BufReader::with_capacity(1 << 16, reader);
+    let decoded = match args.format {
+        Format::Candump => decode_candump(reader, &mut out, &mut report),
+        Format::Slcan => decode_slcan(reader, &mut out, &mut report),
+        Format::Ild => decode_ild(reader, range, &mut out, &mut report),
     };
-    let mut out = BufWriter::new(std::io::stdout().lock());
-    let reader = BufReader::new(reader);
-    match args.format {
-        Format::Candump => decode_candump(reader, &mut out, &mut report)?,
-        Format::Slcan => decode_slcan(reader, &mut out, &mut report)?,
-        Format::Ild => decode_ild(reader, range, &mut out, &mut report)?,
-    }
+    report.finish();
+    decoded?;
     out.flush().context("cannot write to stdout")?;
     Ok(if report.malformed == 0 {
         ExitCode::SUCCESS
     } else {
-        eprintln!(
-            "scanhil decode: {}: {} malformed item(s)",
-            report.source, report.malformed
-        );
         ExitCode::FAILURE
     })
 }
@@ -183,16 +246,24 @@ fn decode_candump(
     let mut number = 0usize;
     loop {
         line.clear();
-        if reader
-            .read_until(b'\n', &mut line)
+        let Some(length) = read_bounded_line(&mut reader, &mut line, MAX_CANDUMP_LINE)
             .context("cannot read input")?
-            == 0
-        {
+        else {
             return Ok(());
-        }
+        };
         number += 1;
+        if length > line.len() {
+            report.malformed(format_args!(
+                "line {number}: longer than any candump line ({MAX_CANDUMP_LINE} bytes): {}",
+                quoted(&line, length)
+            ));
+            continue;
+        }
         let Ok(text) = std::str::from_utf8(&line) else {
-            report.malformed(format_args!("line {number}: not UTF-8"));
+            report.malformed(format_args!(
+                "line {number}: not UTF-8: {}",
+                quoted(&line, line.len())
+            ));
             continue;
         };
         if text.trim().is_empty() {
@@ -206,7 +277,49 @@ fn decode_candump(
                     write_line(out, &json)?;
                 }
             }
-            Err(err) => report.malformed(format_args!("line {number}: {err}")),
+            Err(err) => {
+                // Quote at most the start of what the parser quoted.
+                let message = err.to_string();
+                if message.len() > 2 * MAX_QUOTED {
+                    report.malformed(format_args!(
+                        "line {number}: {}",
+                        quoted(message.as_bytes(), message.len())
+                    ));
+                } else {
+                    report.malformed(format_args!("line {number}: {message}"));
+                }
+            }
+        }
+    }
+}
+
+/// Reads one line (to `\n`, which is kept) into `line`, holding at most `limit` bytes of it
+/// and skipping the rest; returns the line's whole length, `None` at the end of the input.
+fn read_bounded_line(
+    reader: &mut impl BufRead,
+    line: &mut Vec<u8>,
+    limit: usize,
+) -> std::io::Result<Option<usize>> {
+    let mut length = 0usize;
+    loop {
+        let buffer = match reader.fill_buf() {
+            Ok(buffer) => buffer,
+            Err(error) if error.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(error) => return Err(error),
+        };
+        if buffer.is_empty() {
+            return Ok((length > 0).then_some(length));
+        }
+        let (taken, done) = match buffer.iter().position(|&b| b == b'\n') {
+            Some(i) => (i + 1, true),
+            None => (buffer.len(), false),
+        };
+        let room = limit.saturating_sub(line.len()).min(taken);
+        line.extend_from_slice(&buffer[..room]);
+        length += taken;
+        reader.consume(taken);
+        if done {
+            return Ok(Some(length));
         }
     }
 }
@@ -234,11 +347,12 @@ fn decode_slcan(
     report: &mut Report,
 ) -> anyhow::Result<()> {
     let mut decoder = SlcanDecoder::new();
-    // Fed byte by byte so that each frame's line start is known for the error messages.
+    // Fed up to each line's end (CR or BEL) so that each frame's line start is known for the
+    // error messages.
     let mut line_start = 0u64;
     for_each_chunk(reader, |chunk| {
-        for &byte in chunk {
-            for event in decoder.push(&[byte]) {
+        for line in chunk.split_inclusive(|&byte| byte == CR || byte == BEL) {
+            for event in decoder.push(line) {
                 match event {
                     Ok(SlcanMessage::Frame(frame)) => {
                         let at = format!("byte offset {line_start}");
@@ -317,10 +431,7 @@ mod tests {
     use super::*;
 
     fn report() -> Report {
-        Report {
-            source: "test".to_owned(),
-            malformed: 0,
-        }
+        Report::new("test".to_owned())
     }
 
     fn lines(out: &[u8]) -> Vec<Value> {
@@ -380,5 +491,61 @@ mod tests {
         assert!(decoded[1].get("mm").is_none());
         assert_eq!(decoded[2]["error"], "no_peak");
         assert_eq!(report.malformed, 1);
+    }
+
+    #[test]
+    fn a_megabyte_line_is_skipped_unheld_and_quoted_by_its_start() {
+        let mut log = vec![b'x'; 1 << 20];
+        log.extend_from_slice(b"\n(1.700000) vcan0 021#E8030000\n");
+        let mut line = Vec::new();
+        let mut reader = &log[..];
+        let length = read_bounded_line(&mut reader, &mut line, MAX_CANDUMP_LINE).unwrap();
+        assert_eq!(length, Some((1 << 20) + 1));
+        assert_eq!(line.len(), MAX_CANDUMP_LINE, "no more than the limit held");
+        let quote = quoted(&line, length.unwrap());
+        assert_eq!(
+            quote,
+            format!("{:?}... (1048577 bytes)", "x".repeat(MAX_QUOTED))
+        );
+        let mut out = Vec::new();
+        let mut report = report();
+        decode_candump(&log[..], &mut out, &mut report).unwrap();
+        assert_eq!(lines(&out).len(), 1, "the next line decodes");
+        assert_eq!(report.malformed, 1);
+    }
+
+    #[test]
+    fn stderr_is_capped_but_every_item_is_counted() {
+        /// A writer whose bytes the test reads afterwards.
+        #[derive(Clone, Default)]
+        struct Shared(std::sync::Arc<std::sync::Mutex<Vec<u8>>>);
+        impl Write for Shared {
+            fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+                self.0.lock().unwrap().extend_from_slice(bytes);
+                Ok(bytes.len())
+            }
+            fn flush(&mut self) -> std::io::Result<()> {
+                Ok(())
+            }
+        }
+        let written = Shared::default();
+        let mut report = Report::writing_to("test".into(), Box::new(written.clone()));
+        for k in 0..3 * MAX_SHOWN {
+            report.malformed(format_args!("item {k}"));
+        }
+        report.finish();
+        let text = String::from_utf8(written.0.lock().unwrap().clone()).unwrap();
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(
+            lines.len() as u64,
+            MAX_SHOWN + 2,
+            "capped, then the note and the count"
+        );
+        assert_eq!(lines[0], "scanhil decode: test: item 0");
+        assert!(lines[MAX_SHOWN as usize].contains("the rest are counted, not shown"));
+        assert_eq!(
+            lines[MAX_SHOWN as usize + 1],
+            format!("scanhil decode: test: {} malformed item(s)", 3 * MAX_SHOWN)
+        );
     }
 }

@@ -264,6 +264,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         );
     }
     println!("wrote {}", args.out_dir.display());
+    for (file, why) in &report.failed_files {
+        eprintln!("error: {file} not written: {why}");
+    }
+    if !report.failed_files.is_empty() {
+        return Ok(ExitCode::FAILURE);
+    }
     if let Some(error) = &report.feature_error {
         eprintln!("error: feature height: {error}");
         return Ok(ExitCode::FAILURE);

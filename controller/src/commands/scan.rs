@@ -4,11 +4,13 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
+use scanhil_controller::run::output::REPORT;
 use scanhil_controller::run::scenario::{NodeLink, Scenario, TimingMode};
 use scanhil_controller::run::{ScanEnd, ScanOptions, default_out_dir, run_scan};
 
-/// Exit status of a scan that stopped early (link timeout, node fault, link failure); its
-/// outputs up to that point are written.
+/// Exit status of a scan that stopped early (link timeout, node fault, link failure, a
+/// recording that could not be written) or whose outputs could not all be written; the
+/// outputs it could write are written.
 const EXIT_STOPPED: u8 = 3;
 
 /// Run a scan scenario (fixtures/scenarios/*.json) and write its output folder.
@@ -105,21 +107,30 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         sched_fifo_priority: args.sched_fifo_priority,
         probe_s: args.probe_s,
     };
-    let end = run_scan(&scenario, &options)
+    let result = run_scan(&scenario, &options)
         .with_context(|| format!("scan {}", args.scenario.display()))?;
-    let report_path = out_dir.join("report.json");
-    let report: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(&report_path)
-            .with_context(|| format!("reading back {}", report_path.display()))?,
-    )?;
-    println!("{}", summary_text(&report, &out_dir));
-    Ok(match end {
-        ScanEnd::Complete => ExitCode::SUCCESS,
-        ScanEnd::Stopped(why) => {
-            eprintln!("scanhil: scan stopped early: {why}");
-            ExitCode::from(EXIT_STOPPED)
-        }
-    })
+    let report_path = out_dir.join(REPORT);
+    if !result.failed_outputs.contains(REPORT) {
+        let report: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(&report_path)
+                .with_context(|| format!("reading back {}", report_path.display()))?,
+        )?;
+        println!("{}", summary_text(&report, &out_dir));
+    }
+    let mut code = ExitCode::SUCCESS;
+    if let ScanEnd::Stopped(why) = &result.end {
+        eprintln!("scanhil: scan stopped early: {why}");
+        code = ExitCode::from(EXIT_STOPPED);
+    }
+    if !result.failed_outputs.is_empty() {
+        eprintln!(
+            "scanhil: outputs not written in {}: {}",
+            out_dir.display(),
+            result.failed_outputs
+        );
+        code = ExitCode::from(EXIT_STOPPED);
+    }
+    Ok(code)
 }
 
 fn summary_text(report: &serde_json::Value, out_dir: &std::path::Path) -> String {

@@ -280,6 +280,10 @@ pub struct ImagingReport {
     pub options: ImagingOptions,
     /// The files written, relative to the output folder.
     pub files: Vec<String>,
+    /// The files that could not be written, with why (each failed alone: the others were
+    /// written).
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub failed_files: BTreeMap<String, String>,
 }
 
 /// The point cloud (with each point's time: the snapshots are made again from it).
@@ -320,23 +324,28 @@ fn quantity_caption(map_quantity: &str) -> &'static str {
 /// returns the report for the caller's `report.json`; `missing_by_reason` is copied into it.
 /// The snapshots count from [`Imaging::frame`]; the profiles cross at the feature's centre
 /// (the map's centre without a feature) and carry the true surface when [`Imaging::truth`]
-/// is known.
+/// is known. A file that cannot be written does not stop the others: it is listed in
+/// [`ImagingReport::failed_files`] with why.
 ///
 /// # Errors
-/// The first file that cannot be written.
+/// The folder cannot be created.
 pub fn write_outputs(
     imaging: &Imaging,
     dir: &Path,
     encoding: PlyEncoding,
     missing_by_reason: &BTreeMap<String, usize>,
 ) -> Result<ImagingReport, ImagingError> {
-    let io = |path: PathBuf| move |source| ImagingError::Io { path, source };
-    std::fs::create_dir_all(dir).map_err(io(dir.to_owned()))?;
+    std::fs::create_dir_all(dir).map_err(|source| ImagingError::Io {
+        path: dir.to_owned(),
+        source,
+    })?;
     let r = &imaging.reconstruction;
     let model = r.cloud.model.name();
-    let mut files = Vec::new();
-    write_ply_file(&dir.join(POINTS_PLY), &r.cloud, encoding)?;
-    files.push(POINTS_PLY);
+    let mut written = Written::default();
+    written.attempt(
+        POINTS_PLY,
+        write_ply_file(&dir.join(POINTS_PLY), &r.cloud, encoding).map_err(ImagingError::from),
+    );
     let map_quantity = if imaging.plane.is_some() {
         "height_above_plane_mm"
     } else {
@@ -354,15 +363,14 @@ pub fn write_outputs(
             }
         ),
         caption,
-    )?;
-    files.push(HEIGHT_MAP_PNG);
-    let csv = dir.join(HEIGHT_MAP_CSV);
-    let file = std::fs::File::create(&csv).map_err(io(csv.clone()))?;
-    imaging
-        .map
-        .write_csv(std::io::BufWriter::new(file))
-        .map_err(io(csv.clone()))?;
-    files.push(HEIGHT_MAP_CSV);
+    );
+    let map_range_mm = written
+        .attempt(HEIGHT_MAP_PNG, map_range_mm.map_err(ImagingError::from))
+        .flatten();
+    written.attempt(
+        HEIGHT_MAP_CSV,
+        write_csv_file(&dir.join(HEIGHT_MAP_CSV), |out| imaging.map.write_csv(out)),
+    );
     if !imaging.progressive.is_empty() {
         let mut comparison = ProgressiveComparison::new(
             imaging.options.model,
@@ -377,8 +385,12 @@ pub fn write_outputs(
             missing_samples: r.missing_samples,
             points: imaging.progressive.clone(),
         });
-        comparison.draw(&dir.join(PROGRESSIVE_SVG))?;
-        files.push(PROGRESSIVE_SVG);
+        written.attempt(
+            PROGRESSIVE_SVG,
+            comparison
+                .draw(&dir.join(PROGRESSIVE_SVG))
+                .map_err(ImagingError::from),
+        );
     }
     let frame = imaging
         .frame
@@ -392,7 +404,7 @@ pub fn write_outputs(
         frame,
         &SNAPSHOT_FRACTIONS,
     );
-    draw_snapshots(
+    let drawn = draw_snapshots(
         &dir.join(SNAPSHOTS_PNG),
         &format!(
             "the map after parts of the {:.3} s frame (no fill)",
@@ -400,8 +412,8 @@ pub fn write_outputs(
         ),
         caption,
         &[(String::new(), snapshots.clone())],
-    )?;
-    files.push(SNAPSHOTS_PNG);
+    );
+    written.attempt(SNAPSHOTS_PNG, drawn.map_err(ImagingError::from));
     let spec = imaging.map.spec;
     let profile_centre = match &imaging.feature {
         Some(Ok(f)) => ProfileCentre {
@@ -423,18 +435,16 @@ pub fn write_outputs(
             Some(plane.map_or(z, |plane| plane.height_mm([x, y, z])))
         },
     );
-    draw_profiles(
+    let drawn = draw_profiles(
         &dir.join(PROFILES_SVG),
         caption,
         &[("this scan".to_string(), &profiles)],
-    )?;
-    files.push(PROFILES_SVG);
-    let csv = dir.join(PROFILES_CSV);
-    let file = std::fs::File::create(&csv).map_err(io(csv.clone()))?;
-    profiles
-        .write_csv(std::io::BufWriter::new(file))
-        .map_err(io(csv.clone()))?;
-    files.push(PROFILES_CSV);
+    );
+    written.attempt(PROFILES_SVG, drawn.map_err(ImagingError::from));
+    written.attempt(
+        PROFILES_CSV,
+        write_csv_file(&dir.join(PROFILES_CSV), |out| profiles.write_csv(out)),
+    );
     let report = ImagingReport {
         model: model.to_string(),
         samples: samples_in(r),
@@ -460,9 +470,47 @@ pub fn write_outputs(
         snapshots: snapshots.iter().map(|s| s.coverage()).collect(),
         profile_centre: Some(profile_centre),
         options: imaging.options,
-        files: files.into_iter().map(String::from).collect(),
+        files: written.files,
+        failed_files: written.failed,
     };
     Ok(report)
+}
+
+/// The files [`write_outputs`] wrote and those it could not.
+#[derive(Default)]
+struct Written {
+    files: Vec<String>,
+    failed: BTreeMap<String, String>,
+}
+
+impl Written {
+    /// `result` of writing `file`: its value, or `None` with the error listed.
+    fn attempt<T>(&mut self, file: &str, result: Result<T, ImagingError>) -> Option<T> {
+        match result {
+            Ok(value) => {
+                self.files.push(file.to_owned());
+                Some(value)
+            }
+            Err(error) => {
+                let why = scanhil_protocol::error_text::chain_text(&error);
+                self.failed.insert(file.to_owned(), why);
+                None
+            }
+        }
+    }
+}
+
+/// Writes a CSV file with `write` (buffered), naming the file in an error.
+fn write_csv_file(
+    path: &Path,
+    write: impl FnOnce(std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<(), ImagingError> {
+    std::fs::File::create(path)
+        .and_then(|file| write(std::io::BufWriter::new(file)))
+        .map_err(|source| ImagingError::Io {
+            path: path.to_owned(),
+            source,
+        })
 }
 
 /// Samples that went into a reconstruction.

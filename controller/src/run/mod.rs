@@ -20,6 +20,8 @@
 //! - [`pairing`]: distances with angles by the sensor's own time.
 //! - [`tracking`]: reference against measured angles.
 //! - [`output`]: report.json, PLY, height map, plots.
+//! - [`output_failures`]: outputs that could not be written, listed instead of ending the
+//!   scan.
 //! - [`out_folder`]: the output folder, locked for one scan and cleared of an earlier one's
 //!   files.
 //! - [`progress`]: the progress bar (terminal only).
@@ -40,6 +42,7 @@ pub mod lockstep;
 pub mod mirror_link;
 pub mod out_folder;
 pub mod output;
+pub mod output_failures;
 pub mod pairing;
 pub mod plan;
 pub mod plant_link;
@@ -66,6 +69,7 @@ use host_loop::HostLoop;
 use lead_in::LeadIn;
 use link_faults::LinkFaults;
 use mirror_link::MirrorLink;
+use output_failures::{OutputFailures, RecordingFailure, RecordingFile};
 use pairing::SensorClock;
 use plan::ScanPlan;
 use scenario::{NodeLink, Scenario, TimingMode};
@@ -131,12 +135,22 @@ impl ScanEnd {
     }
 }
 
-/// Runs a scenario and writes its output folder; returns how it ended.
+/// What a scan came to: how its loop ended, and the outputs that could not be written.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ScanResult {
+    /// How the loop ended.
+    pub end: ScanEnd,
+    /// Output files that could not be written, with why (the others were written).
+    pub failed_outputs: OutputFailures,
+}
+
+/// Runs a scenario and writes its output folder; returns how it ended and which outputs
+/// failed.
 ///
 /// # Errors
 /// Anything that keeps the run from starting (bad files, an unfit bus load, links that do
 /// not open, no emulator binary) or from writing its outputs.
-pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<ScanEnd> {
+pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<ScanResult> {
     let mut scenario = scenario.clone();
     if let Some(fsm) = &options.fsm {
         scenario.links.fsm = fsm.clone();
@@ -287,11 +301,17 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             .flush_capture()
             .context("writing the mirror link's recording")?;
         drop(links.mirror);
-        links
-            .sensor
-            .drain(Duration::from_millis(200))
-            .await
-            .context("draining the sensor link")?;
+        // A drain cut short (a recording that fails, a sensor that errs) costs only the
+        // samples still in flight: the outputs are written all the same.
+        if let Err(error) = links.sensor.drain(Duration::from_millis(200)).await {
+            eprintln!("warning: draining the sensor link: {error}");
+        }
+        let mut failed_recordings = links.recording_failures;
+        for recording in &links.recordings {
+            if let Some(why) = recording.get() {
+                failed_recordings.add(recording.name, why.to_owned());
+            }
+        }
         let emulator_summary = match links.emulator {
             Some(process) => Some(finish_emulator(process, links.emulator_lines).await?),
             None => None,
@@ -306,6 +326,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             emulator_summary,
             frame_faults,
             run_time_s: started.elapsed().as_secs_f64(),
+            failed_recordings,
         })
     })?;
     let declared = sensor_rate_hz
@@ -362,6 +383,10 @@ pub struct OpenLinks {
     pub emulator_lines: Option<mpsc::Receiver<String>>,
     /// What the sensor set-up did, when the plan asked for one.
     pub sensor_setup: Option<sensor_setup::SensorSetupReport>,
+    /// The recordings being written (`record_dir`), each with its first write error.
+    pub recordings: Vec<RecordingFailure>,
+    /// The recordings that could not be created.
+    pub recording_failures: OutputFailures,
 }
 
 /// How long an emulator started here may take to open its links.
@@ -472,16 +497,31 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         (None, NodeLink::Pty) => unreachable!("a pty link has its pair"),
     };
     let clock = (timing.mode == TimingMode::Lockstep).then(VirtualClock::default);
+    // A recording that cannot be created is listed as a failed output; the scan runs without
+    // it.
+    let mut recordings = Vec::new();
+    let mut recording_failures = OutputFailures::default();
     if let Some(dir) = &plan.record_dir {
-        let log = std::fs::File::create(dir.join(output::FSM_LOG))
-            .with_context(|| format!("creating {}", dir.join(output::FSM_LOG).display()))?;
         let capture_clock = clock
             .clone()
             .map_or(CaptureClock::Wall, CaptureClock::Virtual);
-        fsm.set_capture(CanCapture::new(log, output::FSM_INTERFACE, capture_clock));
-        sensor
-            .record_to(&dir.join(output::SENSOR_CAPTURE))
-            .with_context(|| format!("creating {}", dir.join(output::SENSOR_CAPTURE).display()))?;
+        let fsm_log = RecordingFile::create(dir, output::FSM_LOG);
+        if let Some((log, failure)) = recording_failures.attempt(output::FSM_LOG, fsm_log) {
+            fsm.set_capture(CanCapture::new(log, output::FSM_INTERFACE, capture_clock));
+            recordings.push(failure);
+        }
+        if matches!(sensor, SensorLink::Ild(_)) {
+            let capture = RecordingFile::create(dir, output::SENSOR_CAPTURE);
+            if let Some((file, failure)) =
+                recording_failures.attempt(output::SENSOR_CAPTURE, capture)
+            {
+                sensor.record_to(file);
+                recordings.push(failure);
+            }
+        }
+        for (file, why) in recording_failures.iter() {
+            eprintln!("warning: {file} cannot be recorded ({why}); the scan runs without it");
+        }
     }
     let allowance = match timing.mode {
         TimingMode::Lockstep => Duration::from_secs_f64(timing.lockstep_answer_allowance_s),
@@ -497,6 +537,8 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
     Ok(OpenLinks {
         mirror,
         sensor,
+        recordings,
+        recording_failures,
         emulator,
         emulator_lines,
         sensor_setup,
@@ -521,10 +563,32 @@ pub async fn finish_emulator(
         .filter_map(|line| serde_json::from_str::<serde_json::Value>(&line).ok())
         .find(|value| value["event"] == "summary")
         .unwrap_or(serde_json::Value::Null);
-    let exit_status = status.and_then(|s| s.code());
-    Ok(
-        serde_json::json!({ "exit_status": exit_status, "killed": status.is_none(), "summary": summary }),
-    )
+    Ok(emulator_end_json(status, summary))
+}
+
+/// The emulator's end in report.json: `exit_status` (its code, `null` when a signal ended
+/// it), `killed` (a signal ended it, whoever sent it), `signal` (its name), `killed_by_host`
+/// (this run killed it after the grace period) and its `summary` line (`null` without one).
+fn emulator_end_json(
+    status: Option<std::process::ExitStatus>,
+    summary: serde_json::Value,
+) -> serde_json::Value {
+    use std::os::unix::process::ExitStatusExt;
+    let (exit_status, signal, killed_by_host) = match status {
+        Some(status) => (status.code(), status.signal(), false),
+        None => (None, Some(nix::libc::SIGKILL), true),
+    };
+    let signal_name = signal.map(|number| {
+        nix::sys::signal::Signal::try_from(number)
+            .map_or_else(|_| format!("signal {number}"), |s| s.as_str().to_owned())
+    });
+    serde_json::json!({
+        "exit_status": exit_status,
+        "killed": signal.is_some(),
+        "signal": signal_name,
+        "killed_by_host": killed_by_host,
+        "summary": summary,
+    })
 }
 
 /// What an emulator serves, as its ready line states it: the control period and the

@@ -2,7 +2,10 @@
 //! scan (`.scanhil.lock`, an exclusive `flock`), so a second scan into the same folder is
 //! refused instead of splicing its recordings into the first's; and the files an earlier scan
 //! wrote there are removed first, so a re-scan never leaves stale outputs beside a new report.
-//! Other files in the folder are left alone.
+//! Other files in the folder are left alone, and so are a symlink in an output's place (the
+//! user sent that output elsewhere, another disk or `/dev/null`: written through when the scan
+//! writes it) and a directory in an output's way (said on stderr; that output then fails
+//! alone and report.json lists it, [`super::output_failures`]).
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
@@ -74,15 +77,23 @@ impl OutputFolder {
             .with_context(|| format!("writing {}", lock_path.display()))?;
         for name in SCAN_FILES {
             let stale = path.join(name);
-            match std::fs::remove_file(&stale) {
-                Ok(()) => {}
-                Err(error) if error.kind() == std::io::ErrorKind::NotFound => {}
-                Err(error) => {
-                    return Err(error).with_context(|| {
-                        format!("removing the earlier scan's {}", stale.display())
-                    });
-                }
+            let Ok(metadata) = std::fs::symlink_metadata(&stale) else {
+                continue;
+            };
+            if metadata.file_type().is_symlink() {
+                // The user sent this output elsewhere (another disk, /dev/null): kept.
+                continue;
             }
+            if metadata.is_dir() {
+                eprintln!(
+                    "warning: {} is a directory in the way of output {name}: that output will \
+                     not be written",
+                    stale.display()
+                );
+                continue;
+            }
+            std::fs::remove_file(&stale)
+                .with_context(|| format!("removing the earlier scan's {}", stale.display()))?;
         }
         Ok(OutputFolder {
             path: path.to_owned(),

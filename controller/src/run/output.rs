@@ -10,6 +10,10 @@
 //! | `snapshots.png`, `profiles.svg`, `profiles.csv` | the map after 10/25/50/100 % of the frame (Fig. 6); sections along x and y through the feature against the truth (Fig. 10) |
 //! | `fsm.log` | every frame on the mirror link, candump `-L` format, loop-time stamps |
 //! | `sensor.ild` | every byte of the ILD stream, raw (`scanhil decode --format ild`) |
+//!
+//! A file that cannot be written does not stop the others ([`super::output_failures`]):
+//! report.json lists it with why in `outputs.failed` (report.json itself, when it is the one
+//! that fails, is named by `scanhil scan` on stderr).
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -19,15 +23,16 @@ use scanhil_protocol::ild::IldValue;
 use scanhil_report::{Axis, Chart, Series, draw_charts};
 use scanhil_scene::truth::TrueScene;
 
-use super::ScanEnd;
 use super::link_faults::InjectedFrameFaults;
 use super::lockstep::LoopRecord;
 use super::mirror_link::{MirrorLinkCounters, NodeEvent};
+use super::output_failures::OutputFailures;
 use super::pairing::{ArrivalClock, CounterUnwrapper, SensorClock};
 use super::plan::PlanSummary;
 use super::scenario::Scenario;
 use super::sensor_link::{CountedSample, ILD_COUNTER_MODULUS, SensorCounters};
 use super::tracking::TrackingSummary;
+use super::{ScanEnd, ScanResult};
 use crate::imaging::grid::GridMethod;
 use crate::imaging::pipeline::{ImagingOptions, image_samples, write_outputs};
 use crate::imaging::ply::PlyEncoding;
@@ -67,20 +72,24 @@ pub struct RunData {
     /// Wall-clock time from opening the links (or starting the in-process loop) to the end
     /// of the loop, s.
     pub run_time_s: f64,
+    /// Recordings that could not be created or written.
+    pub failed_recordings: OutputFailures,
 }
 
 /// Images the run with the one imaging pipeline (the rig's geometry and calibration) and
-/// writes every output file; returns how the run ended.
+/// writes every output file; returns how the run ended and the files that could not be
+/// written (each failed alone; report.json lists the others' failures in `outputs.failed`).
 ///
 /// # Errors
-/// A file that cannot be written, a truth scene that cannot be read.
+/// A truth scene that cannot be read, samples that cannot be imaged.
 pub fn write(
     scenario: &Scenario,
     plan: &PlanSummary,
     run: &RunData,
     clock: Option<SensorClock>,
     out_dir: &Path,
-) -> anyhow::Result<ScanEnd> {
+) -> anyhow::Result<ScanResult> {
+    let mut failed = run.failed_recordings.clone();
     let record = &run.record;
     let rig = &scenario.rig;
     let measuring_rate_hz = rig.sensor.map_or(0.0, |sensor| sensor.measuring_rate_hz);
@@ -173,20 +182,25 @@ pub fn write(
     let imaging = if samples.iter().any(|s| s.z_meas_mm.is_some()) {
         let mut imaging = image_samples(&samples, &options).context("imaging the scan")?;
         imaging.score_progressive(truth.as_ref(), frame);
-        Some(
-            write_outputs(
-                &imaging,
-                out_dir,
-                PlyEncoding::BinaryLittleEndian,
-                &missing_by_reason,
-            )
-            .context("writing the imaging outputs")?,
+        let report = write_outputs(
+            &imaging,
+            out_dir,
+            PlyEncoding::BinaryLittleEndian,
+            &missing_by_reason,
         )
+        .context("writing the imaging outputs")?;
+        for (file, why) in &report.failed_files {
+            failed.add(file, why.clone());
+        }
+        Some(report)
     } else {
         None
     };
     let tracking = record.tracking.summary(record.lead_in_periods, period_s);
-    write_tracking_plot(record, &tracking, plan, out_dir)?;
+    failed.attempt(
+        TRACKING_SVG,
+        write_tracking_plot(record, &tracking, plan, out_dir),
+    );
     let end = ScanEnd::of(record);
     let figures = scenario.trajectory.figures(imaging.as_ref().map(|m| {
         (
@@ -226,6 +240,7 @@ pub fn write(
             "period_s": record.angles.period_s(),
             "saturated": record.saturated_periods,
             "saturated_in_frame": record.saturated_periods - record.saturated_in_lead_in,
+            "planned_saturated_share": plan.planned_saturated_share,
         },
         "timing": {
             "mode": scenario.timing.mode,
@@ -259,10 +274,17 @@ pub fn write(
         },
         "faults": scenario.faults.is_active().then(|| fault_report(scenario, run, &sensor_counters)),
         "emulator": emulator,
+        "outputs": { "failed": &failed },
     });
     let text = serde_json::to_string_pretty(&report).context("formatting report.json")?;
-    std::fs::write(out_dir.join(REPORT), text + "\n").context("writing report.json")?;
-    Ok(end)
+    let path = out_dir.join(REPORT);
+    let written =
+        std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()));
+    failed.attempt(REPORT, written);
+    Ok(ScanResult {
+        end,
+        failed_outputs: failed,
+    })
 }
 
 /// `report.json` `faults`: what was declared, what was injected (frames on each direction of

@@ -6,8 +6,9 @@
 
 use super::lead_in::LeadInPlan;
 use super::power_backoff::PowerBackoff;
-use super::power_guard::{PowerCheck, guard};
+use super::power_guard::{PowerCheck, describe, guard};
 use super::scenario::Scenario;
+use crate::power_budget::{DriveLimits, loop_effort, saturated_share};
 use crate::scan_controller::ScanController;
 use crate::settings::ControllerSettings;
 use crate::steady_state::{PredictedTracking, predict};
@@ -37,7 +38,16 @@ pub struct PlanSummary {
     pub power: Option<PowerCheck>,
     /// The frame's steady-state tracking error as the nominal loop predicts it.
     pub predicted_tracking: PredictedTracking,
+    /// The share of the frame's periods in which the trajectory's planned steady-state drive
+    /// is beyond the controller's command limits ([`saturated_share`]); from
+    /// [`SATURATION_WARNING_SHARE`] on, said on stderr before the run.
+    pub planned_saturated_share: f64,
 }
+
+/// The planned saturation from which a scan is warned about before it runs: a tenth of the
+/// frame. A loop saturated that often does not track its reference (1 rad amplitudes under
+/// power policy `off`: 1995 of 2000 periods); the scan still runs, as asked.
+pub const SATURATION_WARNING_SHARE: f64 = 0.1;
 
 impl ScanPlan {
     /// Plans `scenario`: loads and builds its controller (at the rig's rate), checks the coil
@@ -73,6 +83,32 @@ impl ScanPlan {
             );
         }
         let predicted_tracking = predict(&nominal, &guarded.trajectory);
+        let planned_saturated_share = saturated_share(
+            &guarded.trajectory,
+            &rig.mirror
+                .map(|mirror| mirror.cross_talk)
+                .unwrap_or_default(),
+            &loop_effort(&nominal),
+            DriveLimits {
+                axis_a: settings.axis_limit_a(),
+                coil_a: settings.coil_current_limit_a,
+            },
+            period_s,
+            scenario.duration_s,
+        );
+        if planned_saturated_share >= SATURATION_WARNING_SHARE {
+            eprintln!(
+                "warning: trajectory {} drives the controller past its command limits ({:.2} A \
+                 per axis, {:.2} A per coil) in an estimated {:.1} % of the frame's periods at \
+                 steady state: the loop saturates there and does not follow the reference; \
+                 lower the amplitudes or frequencies (power policy `shrink` scales them to the \
+                 rig's limits)",
+                describe(&guarded.trajectory),
+                settings.axis_limit_a(),
+                settings.coil_current_limit_a,
+                100.0 * planned_saturated_share
+            );
+        }
         Ok(ScanPlan {
             controller,
             trajectory: guarded.trajectory,
@@ -82,6 +118,7 @@ impl ScanPlan {
                 lead_in,
                 power: guarded.check,
                 predicted_tracking,
+                planned_saturated_share,
             },
         })
     }

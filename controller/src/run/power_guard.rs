@@ -225,6 +225,6 @@ pub fn guard(
 }
 
 /// The trajectory as its JSON (kind, frequencies, amplitudes).
-fn describe(trajectory: &Trajectory) -> String {
+pub(crate) fn describe(trajectory: &Trajectory) -> String {
     serde_json::to_string(trajectory).unwrap_or_else(|_| format!("{trajectory:?}"))
 }

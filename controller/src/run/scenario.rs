@@ -445,6 +445,9 @@ impl Scenario {
                 format!("{steps} is not between 1 and {MAX_PROGRESSIVE_STEPS}"),
             ));
         }
+        self.trajectory
+            .check(0.5 * self.rig.control_rate_hz)
+            .map_err(|(field, reason)| invalid(field, reason))?;
         self.power
             .check()
             .map_err(|(field, reason)| invalid(field, reason))?;

@@ -7,8 +7,6 @@
 //! fed with bytes directly, for a loop run in one process.
 
 use std::collections::VecDeque;
-use std::fs::File;
-use std::path::Path;
 use std::time::Duration;
 
 use scanhil_protocol::ild::IldValue;
@@ -113,18 +111,12 @@ impl SensorLink {
         }
     }
 
-    /// Records every received byte into `path` (a raw capture `scanhil decode --format ild`
-    /// reads).
-    ///
-    /// # Errors
-    /// The file cannot be created.
-    pub fn record_to(&mut self, path: &Path) -> std::io::Result<()> {
+    /// Records every received byte into `out` (a raw capture `scanhil decode --format ild`
+    /// reads); nothing when the sensor is elsewhere.
+    pub fn record_to(&mut self, out: impl std::io::Write + Send + 'static) {
         if let SensorLink::Ild(stream) = self {
-            stream
-                .link
-                .set_capture(ByteCapture::new(File::create(path)?));
+            stream.link.set_capture(ByteCapture::new(out));
         }
-        Ok(())
     }
 
     /// Reads and decodes until the link fails; never returns otherwise (a link that is

@@ -62,7 +62,10 @@ fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(code) => code,
         Err(error) => {
-            eprintln!("scanhil-study: error: {error:#}");
+            eprintln!(
+                "scanhil-study: error: {}",
+                scanhil_protocol::error_text::chain_text(&*error)
+            );
             ExitCode::FAILURE
         }
     }

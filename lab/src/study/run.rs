@@ -45,7 +45,7 @@ pub fn run_variants(study: &Study, scenarios: &[PathBuf], jobs: usize) -> Vec<Va
                         break;
                     };
                     let outcome = run_one(scenario).unwrap_or_else(|error| {
-                        let message = format!("{error:#}");
+                        let message = scanhil_protocol::error_text::chain_text(&*error);
                         bar.suspend(|| {
                             eprintln!(
                                 "variant {} ({}): {message}",
