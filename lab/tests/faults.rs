@@ -110,13 +110,9 @@ fn a_dropped_coil_command_leaves_the_node_one_stale_period() {
     completed(&outcome, &faults);
     assert_eq!(node(&faults, "command_gaps"), 1);
     // Period 0 steps before any command as well.
-    let clean = run_faulty(&small_loop(
-        serde_json::json!({"node_to_host": {"at": [{"period": 5000, "fault": "drop"}]}}),
-    ))
-    .1;
     assert_eq!(
         node(&faults, "stale_periods"),
-        node(&clean, "stale_periods") + 1
+        stale_periods_without_command_faults() + 1
     );
     assert_eq!(host(&faults, "repeated_steps"), 0);
 }
@@ -199,13 +195,9 @@ fn a_coil_command_reordered_behind_its_step_leaves_a_stale_period_and_comes_late
         "CoilCommand",
     )));
     completed(&outcome, &faults);
-    let clean = run_faulty(&small_loop(
-        serde_json::json!({"node_to_host": {"at": [{"period": 5000, "fault": "drop"}]}}),
-    ))
-    .1;
     assert_eq!(
         node(&faults, "stale_periods"),
-        node(&clean, "stale_periods") + 1
+        stale_periods_without_command_faults() + 1
     );
     assert_eq!(node(&faults, "command_gaps"), 0);
 }
@@ -374,4 +366,14 @@ fn a_bit_flip_in_a_step_is_never_stepped_and_the_step_is_sent_again() {
     assert_eq!(host(&faults, "repeated_steps"), 200);
     let summary = &outcome.run.emulator_summary.as_ref().unwrap()["summary"];
     assert_eq!(summary["node"]["periods"], 2000, "stepped once per period");
+}
+
+/// The node's stale periods in the same small loop with no fault on the commands (a fault
+/// declared past its end keeps the run's set-up the same).
+fn stale_periods_without_command_faults() -> u64 {
+    let clean = run_faulty(&small_loop(
+        serde_json::json!({"node_to_host": {"at": [{"period": 5000, "fault": "drop"}]}}),
+    ))
+    .1;
+    node(&clean, "stale_periods")
 }

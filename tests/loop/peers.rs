@@ -173,13 +173,13 @@ fn spawn_deaf_node(pair: PtyPair, limit: Duration) -> std::thread::JoinHandle<u6
 #[test]
 fn a_node_that_stops_reading_stops_the_scan_with_exit_3() {
     // Built (if need be) before the node's clock starts.
-    let scanhil = scanhil();
+    let _ = scanhil();
     let pair = PtyPair::open().expect("a pty pair");
     let fsm = format!("slcan:{}", pair.slave_path().display());
     let node = spawn_deaf_node(pair, Duration::from_secs(60));
     let out = tempfile::tempdir().expect("a temporary folder");
     // 20 000 periods of 50 us = 1 s: how long a write may wait for the node to read.
-    let mut child = start_scan_of_node(&scanhil, &fsm, "realtime", 60.0, 20_000, out.path());
+    let mut child = start_scan_of_node(&fsm, "realtime", 60.0, 20_000, out.path());
     // Bound: the 1 s write allowance, the closing exchange's wait, and a loaded machine's
     // slack. Without the write deadline the host stays blocked in its write for ever.
     let deadline = std::time::Instant::now() + Duration::from_secs(30);

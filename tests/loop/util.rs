@@ -469,29 +469,42 @@ impl SlcanHost {
 /// its own) in `timing`, for `duration_s` with a watchdog of `watchdog_periods`, into `out`;
 /// stderr piped, stdout dropped.
 pub fn start_scan_of_node(
-    scanhil: &Path,
     fsm: &str,
     timing: &str,
     duration_s: f64,
     watchdog_periods: u32,
     out: &Path,
 ) -> std::process::Child {
-    Command::new(scanhil)
+    let duration_s = duration_s.to_string();
+    let watchdog_periods = watchdog_periods.to_string();
+    spawn_scan_of_node(
+        fsm,
+        out,
+        &[
+            "--timing",
+            timing,
+            "--duration-s",
+            &duration_s,
+            "--watchdog-periods",
+            &watchdog_periods,
+        ],
+    )
+}
+
+/// Starts `scanhil scan` of test-loop-small against a mirror node on `fsm` (`--no-emulator`)
+/// into `out` with `scan_args`; stderr piped, stdout dropped.
+fn spawn_scan_of_node(fsm: &str, out: &Path, scan_args: &[&str]) -> std::process::Child {
+    Command::new(scanhil())
         .args([
             "scan",
             &fixture("scenarios/test-loop-small.json"),
             "--fsm",
             fsm,
             "--no-emulator",
-            "--timing",
-            timing,
-            "--duration-s",
-            &duration_s.to_string(),
-            "--watchdog-periods",
-            &watchdog_periods.to_string(),
             "--out",
             out.to_str().expect("UTF-8 path"),
         ])
+        .args(scan_args)
         .stdout(std::process::Stdio::null())
         .stderr(std::process::Stdio::piped())
         .spawn()
@@ -543,21 +556,7 @@ pub fn scan_against_served_emulator(
     args.extend_from_slice(emulator_args);
     let emulator = ServedEmulator::start(&args);
     let fsm = format!("slcan:{}", emulator.path("fsm"));
-    let child = Command::new(scanhil())
-        .args([
-            "scan",
-            &fixture("scenarios/test-loop-small.json"),
-            "--fsm",
-            &fsm,
-            "--no-emulator",
-            "--out",
-            out.to_str().expect("UTF-8 path"),
-        ])
-        .args(scan_args)
-        .stdout(std::process::Stdio::null())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("starting scanhil");
+    let child = spawn_scan_of_node(&fsm, out, scan_args);
     (emulator, child)
 }
 
