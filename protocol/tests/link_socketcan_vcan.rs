@@ -89,6 +89,9 @@ mod vcan {
             a.send(frame).await.unwrap();
             b.recv().await.unwrap();
         }
+        // The capture writes before the link waits again, or when told to: the last frame's
+        // line is still held here.
+        b.flush_capture().unwrap();
         let text = String::from_utf8(log.bytes()).unwrap();
         let logged: Vec<CanFrame> = text
             .lines()
