@@ -342,12 +342,16 @@ impl ServedEmulator {
             );
             std::thread::sleep(std::time::Duration::from_millis(10));
         };
-        let summary = self
-            .lines
-            .try_iter()
-            .filter_map(|line| serde_json::from_str::<serde_json::Value>(&line).ok())
-            .find(|value| value["event"] == "summary")
-            .unwrap_or(serde_json::Value::Null);
+        // The process has exited; its reader thread may not have passed on the last lines yet:
+        // read until it ends at the pipe's end of file (5 s at most for a loaded machine).
+        let mut summary = serde_json::Value::Null;
+        while let Ok(line) = self.lines.recv_timeout(std::time::Duration::from_secs(5)) {
+            if let Ok(value) = serde_json::from_str::<serde_json::Value>(&line)
+                && value["event"] == "summary"
+            {
+                summary = value;
+            }
+        }
         (status.code(), summary)
     }
 }
