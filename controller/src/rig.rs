@@ -21,6 +21,7 @@ use scanhil_protocol::ild::command::MEASURING_RATES_KHZ;
 use serde::{Deserialize, Serialize};
 
 use crate::imaging::reconstruct::ScanSample;
+use crate::json_file::{self, JsonFileError};
 
 /// A loaded, checked rig description.
 #[derive(Debug, Clone, PartialEq)]
@@ -225,26 +226,9 @@ impl RigSensor {
 /// Why a rig description could not be loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum RigError {
-    /// The file could not be read.
-    #[error("cannot read rig {path}: {source}")]
-    Io {
-        /// The rig file.
-        path: PathBuf,
-        /// The OS error.
-        source: std::io::Error,
-    },
-    /// The JSON did not parse or did not match the format.
-    #[error("{path}:{line}:{column}: {message}")]
-    Parse {
-        /// The rig file.
-        path: PathBuf,
-        /// 1-based line.
-        line: usize,
-        /// 1-based column.
-        column: usize,
-        /// What serde said.
-        message: String,
-    },
+    /// The file could not be read or parsed.
+    #[error(transparent)]
+    File(#[from] JsonFileError),
     /// A field has a value no rig can have.
     #[error("{path}: field `{field}`: {reason}")]
     Invalid {
@@ -279,24 +263,15 @@ impl Rig {
     /// # Errors
     /// [`RigError`] naming the file and, for parse errors, the line and column.
     pub fn load(path: &Path) -> Result<Rig, RigError> {
-        let text = std::fs::read_to_string(path).map_err(|source| RigError::Io {
-            path: path.to_owned(),
-            source,
-        })?;
-        Rig::from_json_str(&text, path)
+        Rig::from_json_str(&json_file::read_text(path, "rig")?, path)
     }
 
     /// Parses and checks a rig description; `origin` names it in errors.
     ///
     /// # Errors
-    /// [`RigError::Parse`] or [`RigError::Invalid`].
+    /// [`RigError::File`] (parse) or [`RigError::Invalid`].
     pub fn from_json_str(text: &str, origin: &Path) -> Result<Rig, RigError> {
-        let file: RigFile = serde_json::from_str(text).map_err(|err| RigError::Parse {
-            path: origin.to_owned(),
-            line: err.line(),
-            column: err.column(),
-            message: err.to_string(),
-        })?;
+        let file: RigFile = json_file::parse(text, origin)?;
         let invalid = |(field, reason): (&'static str, String)| RigError::Invalid {
             path: origin.to_owned(),
             field,

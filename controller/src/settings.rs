@@ -7,6 +7,7 @@ use std::path::{Path, PathBuf};
 use crate::continuous::FactoredTf;
 use crate::discretise::{Method, discretise};
 use crate::dual_tone::DualToneParams;
+use crate::json_file::{self, JsonFileError};
 use crate::loop_analysis::{NominalLoop, ZPoint};
 use crate::pid::{Pid, PidParams};
 use crate::plant_model::PlantModel;
@@ -64,26 +65,9 @@ fn default_coil_limit_a() -> f64 {
 /// Why a controller file could not be used.
 #[derive(Debug, thiserror::Error)]
 pub enum SettingsError {
-    /// The file could not be read.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: PathBuf,
-        /// The I/O error.
-        source: std::io::Error,
-    },
-    /// The JSON did not parse or did not match the settings.
-    #[error("{path}:{line}:{column}: {message}")]
-    Parse {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line.
-        line: usize,
-        /// 1-based column.
-        column: usize,
-        /// serde's message.
-        message: String,
-    },
+    /// The file could not be read or parsed.
+    #[error(transparent)]
+    File(#[from] JsonFileError),
     /// A field's value is not usable.
     #[error("{path}: field `{field}`: {reason}")]
     Invalid {
@@ -119,21 +103,12 @@ fn format_poles(poles: &[ZPoint]) -> String {
 impl ControllerSettings {
     /// Reads and parses a settings file (no stability check yet: see [`Self::build`]).
     pub fn load(path: &Path) -> Result<Self, SettingsError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SettingsError::Io {
-            path: path.to_owned(),
-            source,
-        })?;
-        Self::from_json_str(&text, path)
+        Self::from_json_str(&json_file::read_text(path, "controller settings")?, path)
     }
 
     /// Parses settings from JSON text; `origin` names the source in errors.
     pub fn from_json_str(text: &str, origin: &Path) -> Result<Self, SettingsError> {
-        let settings: Self = serde_json::from_str(text).map_err(|e| SettingsError::Parse {
-            path: origin.to_owned(),
-            line: e.line(),
-            column: e.column(),
-            message: e.to_string(),
-        })?;
+        let settings: Self = json_file::parse(text, origin)?;
         let settings = Self {
             origin: origin.to_owned(),
             ..settings

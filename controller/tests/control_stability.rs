@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 
 use scanhil_controller::accuracy::tone_placements;
 use scanhil_controller::discretise::Method;
+use scanhil_controller::json_file::JsonFileError;
 use scanhil_controller::settings::{ControllerSettings, SettingsError};
 
 fn fixture(name: &str) -> PathBuf {
@@ -176,7 +177,7 @@ fn bad_settings_name_the_field_and_the_file() {
     let bad = text.replace("\"tustin\"", "\"bilinear\"");
     let err = ControllerSettings::from_json_str(&bad, Path::new("bad.json")).unwrap_err();
     assert!(
-        matches!(err, SettingsError::Parse { line, .. } if line > 1),
+        matches!(err, SettingsError::File(JsonFileError::Parse { line, .. }) if line > 1),
         "{err}"
     );
 }

@@ -21,6 +21,7 @@ use super::link_faults::FaultsConfig;
 use super::power_guard::PowerConfig;
 use crate::imaging::feature::FeatureParams;
 use crate::imaging::pipeline::MAX_PROGRESSIVE_STEPS;
+use crate::json_file::{self, JsonFileError};
 use crate::rig::{Rig, RigError};
 use crate::trajectory::Trajectory;
 use scanhil_protocol::fault_injection::FaultConfigError;
@@ -262,26 +263,9 @@ impl Default for ImagingConfig {
 /// Why a scenario could not be loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum ScenarioError {
-    /// The file could not be read.
-    #[error("cannot read scenario {path}: {source}")]
-    Io {
-        /// The scenario file.
-        path: PathBuf,
-        /// The OS error.
-        source: std::io::Error,
-    },
-    /// The JSON did not parse or did not match the format.
-    #[error("{path}:{line}:{column}: {message}")]
-    Parse {
-        /// The scenario file.
-        path: PathBuf,
-        /// 1-based line.
-        line: usize,
-        /// 1-based column.
-        column: usize,
-        /// What serde said.
-        message: String,
-    },
+    /// The file could not be read or parsed.
+    #[error(transparent)]
+    File(#[from] JsonFileError),
     /// The rig description could not be loaded.
     #[error("{path}: rig: {source}")]
     Rig {
@@ -346,25 +330,15 @@ impl Scenario {
     /// # Errors
     /// [`ScenarioError`] naming the file and, for parse errors, the line and column.
     pub fn load(path: &Path) -> Result<Scenario, ScenarioError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ScenarioError::Io {
-            path: path.to_owned(),
-            source,
-        })?;
-        Scenario::from_json_str(&text, path)
+        Scenario::from_json_str(&json_file::read_text(path, "scenario")?, path)
     }
 
     /// Parses and checks a scenario; `origin` names it in errors and anchors relative paths.
     ///
     /// # Errors
-    /// [`ScenarioError::Parse`] or [`ScenarioError::Invalid`].
+    /// [`ScenarioError::File`] (parse), [`ScenarioError::Rig`] or [`ScenarioError::Invalid`].
     pub fn from_json_str(text: &str, origin: &Path) -> Result<Scenario, ScenarioError> {
-        let file: ScenarioFile =
-            serde_json::from_str(text).map_err(|err| ScenarioError::Parse {
-                path: origin.to_owned(),
-                line: err.line(),
-                column: err.column(),
-                message: err.to_string(),
-            })?;
+        let file: ScenarioFile = json_file::parse(text, origin)?;
         let base = origin.parent().unwrap_or(Path::new("."));
         let rig = Rig::load(&base.join(&file.rig)).map_err(|source| ScenarioError::Rig {
             path: origin.to_owned(),
