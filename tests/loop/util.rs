@@ -4,13 +4,10 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
-use std::time::{Duration, Instant};
 
 use scanhil_protocol::ild::IldValue;
 use scanhil_protocol::ild::stream::IldDecoder;
-use scanhil_protocol::link::{CanLink, PtyPair, Role};
-use scanhil_protocol::message::{AngleReading, Message};
-use scanhil_protocol::plant_units::SensingPair;
+use scanhil_protocol::message::Message;
 
 /// The workspace root: the package's folder, or the nearest folder above it with the
 /// fixtures (a member crate that includes these helpers, such as `lab/`).
@@ -588,68 +585,4 @@ pub fn children(pid: u32) -> Vec<u32> {
                 .collect::<Vec<u32>>()
         })
         .collect()
-}
-
-/// Waits up to `limit` for `child` to exit and collects its output; kills and reaps it (and
-/// fails, naming `what`) if it does not.
-pub fn exits_within(
-    mut child: std::process::Child,
-    limit: Duration,
-    what: &str,
-) -> std::process::Output {
-    let started = Instant::now();
-    while child.try_wait().expect("polling scanhil").is_none() {
-        if started.elapsed() > limit {
-            let _ = child.kill();
-            let output = child.wait_with_output().expect("reaping scanhil");
-            panic!(
-                "{what}: scanhil still running after {limit:?}; stderr:\n{}",
-                String::from_utf8_lossy(&output.stderr)
-            );
-        }
-        std::thread::sleep(Duration::from_millis(50));
-    }
-    child
-        .wait_with_output()
-        .expect("collecting scanhil's output")
-}
-
-/// A mirror node that stops reading, on a pty the test holds: it opens the channel for the
-/// host (answering `C`, `Sn`, `O`), then sends AngleReading(j) for j = 0, 1, ... as fast as
-/// the line takes them and never reads again, for at most `limit`. Returns how many it sent.
-pub fn spawn_deaf_node(pair: PtyPair, limit: Duration) -> std::thread::JoinHandle<u64> {
-    std::thread::spawn(move || {
-        let runtime = tokio::runtime::Builder::new_current_thread()
-            .enable_all()
-            .build()
-            .expect("a runtime");
-        runtime.block_on(async move {
-            let started = tokio::time::Instant::now();
-            let mut link = CanLink::open_pty(pair, None, Role::Device)
-                .await
-                .expect("the device end");
-            while !link.channel_open() {
-                if link.recv_timeout(Duration::from_millis(10)).await.is_err()
-                    || started.elapsed() > limit
-                {
-                    return 0;
-                }
-            }
-            let mut sent = 0u64;
-            while started.elapsed() < limit {
-                let reading = Message::AngleReading(AngleReading::from_rad(
-                    sent as u16,
-                    SensingPair::default(),
-                ))
-                .encode()
-                .expect("encodable");
-                match tokio::time::timeout(Duration::from_millis(100), link.send(&reading)).await {
-                    Ok(Ok(())) => sent += 1,
-                    Ok(Err(_hang_up)) => break,
-                    Err(_line_full) => {}
-                }
-            }
-            sent
-        })
-    })
 }
