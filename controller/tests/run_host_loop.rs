@@ -5,7 +5,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use scanhil_controller::run::host_inbox::HostInbox;
-use scanhil_controller::run::host_loop::{Heard, HostAction, HostLoop, LoopError};
+use scanhil_controller::run::host_loop::{Heard, HostAction, HostLoop, LoopError, LoopRecord};
 use scanhil_controller::scan_controller::ScanController;
 use scanhil_controller::settings::ControllerSettings;
 use scanhil_controller::trajectory::Trajectory;
@@ -14,6 +14,11 @@ use scanhil_protocol::message::{
     AngleReading, Fault, FaultKind, Message, NodeId, NodeState, Status, ids,
 };
 use scanhil_protocol::plant_units::SensingPair;
+
+/// An empty record of `periods` periods at the test controller's rate.
+fn empty_record(periods: u64) -> LoopRecord {
+    LoopRecord::new(controller().period_s(), periods)
+}
 
 fn controller() -> ScanController {
     let path =
@@ -71,7 +76,12 @@ fn a_run_sends_command_and_step_per_period_counts_what_it_files_and_ends_with_th
     let mut controller = controller();
     let period_s = controller.period_s();
     let trajectory = trajectory();
-    let mut host = HostLoop::new(&mut controller, &trajectory, 2, HostInbox::new("test"));
+    let mut host = HostLoop::new(
+        &mut controller,
+        &trajectory,
+        empty_record(2),
+        HostInbox::new("test"),
+    );
     for k in 0..2u64 {
         let sent = decoded(host.next_action());
         assert_eq!(sent.len(), 2);
@@ -137,7 +147,12 @@ fn the_nodes_link_timeout_fault_stops_the_run_with_a_zero_command() {
     let mut controller = controller();
     let period_s = controller.period_s();
     let trajectory = trajectory();
-    let mut host = HostLoop::new(&mut controller, &trajectory, 10, HostInbox::new("test"));
+    let mut host = HostLoop::new(
+        &mut controller,
+        &trajectory,
+        empty_record(10),
+        HostInbox::new("test"),
+    );
     decoded(host.next_action());
     assert_eq!(host.on_frame(&reading(0), now()), Heard::Reading(0));
     decoded(host.next_action());
@@ -178,7 +193,12 @@ fn silence_stops_a_period_but_ends_the_run_quietly_after_the_last() {
     };
     let mut controller = controller();
     let trajectory = trajectory();
-    let mut host = HostLoop::new(&mut controller, &trajectory, 1, HostInbox::new("test"));
+    let mut host = HostLoop::new(
+        &mut controller,
+        &trajectory,
+        empty_record(1),
+        HostInbox::new("test"),
+    );
     decoded(host.next_action());
     assert_eq!(host.on_frame(&reading(0), now()), Heard::Reading(0));
     decoded(host.next_action());
@@ -190,7 +210,12 @@ fn silence_stops_a_period_but_ends_the_run_quietly_after_the_last() {
         "a node without the end exchange"
     );
 
-    let mut host = HostLoop::new(&mut controller, &trajectory, 1, HostInbox::new("test"));
+    let mut host = HostLoop::new(
+        &mut controller,
+        &trajectory,
+        empty_record(1),
+        HostInbox::new("test"),
+    );
     decoded(host.next_action());
     host.on_error(timeout(0));
     decoded(host.next_action());

@@ -17,7 +17,7 @@ use std::time::Duration;
 
 use anyhow::{Context, bail};
 use scanhil_controller::run::host_inbox::HostInbox;
-use scanhil_controller::run::host_loop::{Heard, HostAction, HostLoop, LoopError};
+use scanhil_controller::run::host_loop::{Heard, HostAction, HostLoop, LoopError, LoopRecord};
 use scanhil_controller::run::link_faults::LinkFaults;
 use scanhil_controller::run::out_folder::OutputFolder;
 use scanhil_controller::run::output::{self, RunData};
@@ -38,6 +38,7 @@ use scanhil_emulator::serve::{DEFAULT_HEARTBEAT_HZ, load_plant};
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::ild::stream::encode_cycle;
 use scanhil_protocol::link::{CanCapture, CaptureClock, VirtualClock};
+use scanhil_protocol::plant_units::SensingPair;
 
 /// The in-memory link's name (in the host's errors).
 pub const LINK_NAME: &str = "in-process:fsm";
@@ -120,11 +121,13 @@ pub fn run_plan(
     plan: ScanPlan,
     out_dir: Option<&Path>,
 ) -> anyhow::Result<InProcessOutcome> {
-    run_probed(scenario, plan, out_dir, u64::MAX, &mut |_| {})
+    run_probed(scenario, plan, out_dir, &mut |_, _| {})
 }
 
-/// [`run_plan`], calling `probe` with the periods done every `every_periods` periods (a soak
-/// samples its memory there).
+/// [`run_plan`], calling `probe` with each reading as the loop takes it (period k, the
+/// angles): a soak samples its memory there, a study or test reads the angles as they come.
+/// The record keeps no angle history of its own unless sensor samples are paired with it, so
+/// a run without a sensor takes the same memory however long it runs.
 ///
 /// # Errors
 /// As [`run`].
@@ -132,8 +135,7 @@ pub fn run_probed(
     scenario: &Scenario,
     plan: ScanPlan,
     out_dir: Option<&Path>,
-    every_periods: u64,
-    probe: &mut dyn FnMut(u64),
+    probe: &mut dyn FnMut(u64, SensingPair),
 ) -> anyhow::Result<InProcessOutcome> {
     if scenario.timing.mode != TimingMode::Lockstep {
         bail!(
@@ -203,13 +205,15 @@ pub fn run_probed(
         ));
     }
     let mut lockstep_node = LockstepNode::new(&mut node, DEFAULT_HEARTBEAT_HZ);
+    let record = LoopRecord::new(period_s, periods)
+        .with_lead_in(plan_summary.lead_in.periods)
+        .keeping_angles(serves_sensor);
     let mut host = HostLoop::new(
         &mut controller,
         &scenario.trajectory,
-        periods,
+        record,
         HostInbox::new(LINK_NAME),
     )
-    .with_lead_in(plan_summary.lead_in.periods)
     .with_backoff(backoff)
     .with_tries_per_reading(tries);
     loop {
@@ -222,10 +226,8 @@ pub fn run_probed(
             }
             HostAction::AwaitReading { period, t_s } => match transport.host_receives(t_s)? {
                 Some(frame) => {
-                    if let Heard::Reading(k) = host.on_frame(&frame, tokio::time::Instant::now())
-                        && (k + 1) % every_periods == 0
-                    {
-                        probe(k + 1);
+                    if let Heard::Reading(k) = host.on_frame(&frame, tokio::time::Instant::now()) {
+                        probe(k, host.latest_reading());
                     }
                 }
                 None => match host.on_silence() {

@@ -160,16 +160,21 @@ struct BackoffRun {
 /// after 1.5 s (the back-off's ramp ends at 1.29 s) and the saturated periods.
 fn backoff_run(backoff: bool, duration_s: f64) -> BackoffRun {
     let scenario = sine_scenario(60.0, "off", backoff, duration_s);
-    let outcome = scanhil_lab::in_process::run(&scenario, None).unwrap();
+    let mut alpha_rad = Vec::new();
+    let outcome = scanhil_lab::in_process::run_probed(
+        &scenario,
+        ScanPlan::new(&scenario).unwrap(),
+        None,
+        &mut |_, angles| alpha_rad.push(angles.alpha),
+    )
+    .unwrap();
     let record = &outcome.run.record;
-    let period_s = record.angles.period_s();
+    let period_s = record.period_s;
     let band = |from_s: f64, to_s: f64| {
-        let readings =
-            &record.angles.readings_rad()[(from_s / period_s) as usize..(to_s / period_s) as usize];
-        let alpha: Vec<f64> = readings.iter().map(|a| a.alpha).collect();
+        let alpha = &alpha_rad[(from_s / period_s) as usize..(to_s / period_s) as usize];
         // The 22-23 Hz band in 0.1 Hz steps (the mirror's mode sits at 22.4 Hz).
         (220..=230)
-            .map(|tenth| component_at(&alpha, period_s, f64::from(tenth) / 10.0))
+            .map(|tenth| component_at(alpha, period_s, f64::from(tenth) / 10.0))
             .fold(0.0, f64::max)
     };
     let resonance_rad = band(2.0, duration_s);

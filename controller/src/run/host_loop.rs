@@ -85,11 +85,15 @@ pub enum LoopError {
     Link(#[from] LinkError),
 }
 
-/// What a loop run produced.
+/// What a loop run produced. Its memory does not grow with the run's length, except for the
+/// angle history kept to pair sensor samples with ([`Self::keeping_angles`]).
 #[derive(Debug)]
 pub struct LoopRecord {
-    /// The angle readings, reading k at loop time `(k + 1) * period`.
-    pub angles: AngleTrack,
+    /// The control period, s.
+    pub period_s: f64,
+    /// The angle readings, reading k at loop time `(k + 1) * period`; `None` when not kept
+    /// (no sensor samples to pair them with).
+    pub angles: Option<AngleTrack>,
     /// Reference against measurement.
     pub tracking: TrackingRecorder,
     /// Periods completed.
@@ -108,7 +112,7 @@ pub struct LoopRecord {
     pub controller_timing: Option<ControllerTiming>,
     /// How arrivals map onto the loop's time axis (real time: the earliest reading's arrival
     /// minus its loop time; lockstep: when each period started), to place a real sensor's
-    /// samples there. `None` when the loop did not keep it (in process).
+    /// samples there. `None` when the loop did not keep it (in process, or no angles kept).
     pub arrival_clock: Option<ArrivalClock>,
     /// What the power back-off did (None: not active).
     pub power_backoff: Option<BackoffLog>,
@@ -117,12 +121,13 @@ pub struct LoopRecord {
 }
 
 impl LoopRecord {
-    /// An empty record for a loop of `periods` periods of `period_s`.
+    /// An empty record for a loop of `periods` periods of `period_s`, keeping the angle history.
     #[must_use]
     pub fn new(period_s: f64, periods: u64) -> LoopRecord {
         LoopRecord {
-            angles: AngleTrack::new(period_s),
-            tracking: TrackingRecorder::default(),
+            period_s,
+            angles: Some(AngleTrack::new(period_s)),
+            tracking: TrackingRecorder::new(period_s, periods, 0),
             periods_done: 0,
             periods_planned: periods,
             lead_in_periods: 0,
@@ -136,10 +141,25 @@ impl LoopRecord {
         }
     }
 
-    /// The record of a loop whose first `lead_in_periods` periods were the lead-in.
+    /// The record of a loop whose first `lead_in_periods` periods are the lead-in (set before
+    /// the first reading: the tracking figures split there as they are recorded).
     #[must_use]
     pub fn with_lead_in(mut self, lead_in_periods: u64) -> LoopRecord {
+        debug_assert_eq!(
+            self.tracking.periods(),
+            0,
+            "the lead-in is set before the run"
+        );
         self.lead_in_periods = lead_in_periods;
+        self.tracking = TrackingRecorder::new(self.period_s, self.periods_planned, lead_in_periods);
+        self
+    }
+
+    /// The record keeping the angle history (`true`, the default: a run with sensor samples to
+    /// pair) or not (`false`: memory flat in the run's length).
+    #[must_use]
+    pub fn keeping_angles(mut self, keep: bool) -> LoopRecord {
+        self.angles = keep.then(|| AngleTrack::new(self.period_s));
         self
     }
 
@@ -157,13 +177,15 @@ impl LoopRecord {
         k: u64,
         angles: SensingPair,
     ) {
-        let t_s = (k + 1) as f64 * self.angles.period_s();
+        let t_s = (k + 1) as f64 * self.period_s;
         let reference = trajectory.reference_rad(t_s);
         let reference = SensingPair {
             alpha: reference.alpha * scale,
             beta: reference.beta * scale,
         };
-        self.angles.push(angles);
+        if let Some(track) = &mut self.angles {
+            track.push(angles);
+        }
         self.tracking.record(reference, angles);
         self.periods_done = k + 1;
     }
@@ -248,12 +270,12 @@ pub struct HostLoop<'a> {
 }
 
 impl<'a> HostLoop<'a> {
-    /// A run of `periods` periods of `controller` along `trajectory`, filing what it receives
-    /// into `inbox`.
+    /// A run of `controller` along `trajectory` for the periods `record` plans (its lead-in
+    /// and angle history as it is set up), filing what it receives into `inbox`.
     pub fn new(
         controller: &'a mut ScanController,
         trajectory: &'a Trajectory,
-        periods: u64,
+        record: LoopRecord,
         inbox: HostInbox,
     ) -> HostLoop<'a> {
         let period_s = controller.period_s();
@@ -262,7 +284,7 @@ impl<'a> HostLoop<'a> {
             trajectory,
             period_s,
             inbox,
-            record: LoopRecord::new(period_s, periods),
+            record,
             measured: SensingPair::default(),
             phase: Phase::Start(0),
             backoff: PowerBackoff::inactive(),
@@ -296,14 +318,6 @@ impl<'a> HostLoop<'a> {
         let frame = stamped(&Message::Step { step: k as u32 }, k as f64 * self.period_s).ok()?;
         self.record.repeated_steps += 1;
         Some(frame)
-    }
-
-    /// The same loop, its first `lead_in_periods` periods being the lead-in before the recorded
-    /// frame (the record says so; the loop runs them alike).
-    #[must_use]
-    pub fn with_lead_in(mut self, lead_in_periods: u64) -> HostLoop<'a> {
-        self.record = self.record.with_lead_in(lead_in_periods);
-        self
     }
 
     /// The same loop, backing off the reference when the node reports its power limit.
@@ -459,6 +473,12 @@ impl<'a> HostLoop<'a> {
     #[must_use]
     pub fn record(&self) -> &LoopRecord {
         &self.record
+    }
+
+    /// The newest angle reading taken (zero before the first).
+    #[must_use]
+    pub fn latest_reading(&self) -> SensingPair {
+        self.measured
     }
 
     /// The inbox so far.

@@ -37,14 +37,16 @@ pub async fn run(
         allowance
     };
     let mut sent_at = tokio::time::Instant::now();
-    // When each period's frames started going out: lockstep's arrival clock.
-    let mut period_starts = Vec::with_capacity(host.record().periods_planned as usize);
+    // When each period's frames started going out: lockstep's arrival clock, kept only where
+    // sensor samples are paired with the angles (it grows with the run).
+    let keeps_arrivals = host.record().angles.is_some();
+    let mut period_starts = Vec::new();
     loop {
         let received: Result<CanFrame, LoopError> = match host.next_action() {
             HostAction::Done => break,
             HostAction::Send(frames) => {
                 let period = host.record().periods_done;
-                if period == period_starts.len() as u64 {
+                if keeps_arrivals && period == period_starts.len() as u64 {
                     period_starts.push(tokio::time::Instant::now());
                 }
                 if let Err(error) = mirror
@@ -108,8 +110,8 @@ pub async fn run(
         }
     }
     let (mut record, inbox) = host.finish();
-    record.arrival_clock = Some(ArrivalClock::Steps {
-        period_s: record.angles.period_s(),
+    record.arrival_clock = keeps_arrivals.then_some(ArrivalClock::Steps {
+        period_s: record.period_s,
         sent: period_starts,
     });
     mirror.restore_inbox(inbox);

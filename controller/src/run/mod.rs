@@ -65,7 +65,7 @@ use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{CanCapture, CanLink, CaptureClock, PtyPair, VirtualClock};
 
 use emulator_process::{EmulatorProcess, locate_emulator};
-use host_loop::HostLoop;
+use host_loop::{HostLoop, LoopRecord};
 use lead_in::LeadIn;
 use link_faults::LinkFaults;
 use mirror_link::MirrorLink;
@@ -238,6 +238,11 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         let progress = progress::Progress::new(periods, &scenario.name);
         let mut interrupt =
             interrupt::Interrupt::install().context("installing the signal handlers")?;
+        // Angle history only where sensor samples are paired with it: a mirror-only run's
+        // record takes the same memory however long it runs.
+        let empty_record = LoopRecord::new(period_s, periods)
+            .with_lead_in(lead_in_periods)
+            .keeping_angles(rig.sensor.is_some());
         let record = match scenario.timing.mode {
             TimingMode::Lockstep => {
                 // Injected frame faults are survived by repeating a Step that got no answer.
@@ -254,10 +259,9 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
                 let host = HostLoop::new(
                     &mut controller,
                     &scenario.trajectory,
-                    periods,
+                    empty_record,
                     links.mirror.take_inbox(),
                 )
-                .with_lead_in(lead_in_periods)
                 .with_backoff(backoff)
                 .with_tries_per_reading(tries);
                 lockstep::run(
@@ -270,18 +274,19 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
                 )
                 .await
             }
-            TimingMode::Realtime => realtime::run(
-                &mut links.mirror,
-                &mut links.sensor,
-                &mut controller,
-                &scenario.trajectory,
-                periods,
-                &progress,
-                &mut interrupt,
-                host_scheduling.clone().unwrap_or_default(),
-            )
-            .await
-            .with_lead_in(lead_in_periods),
+            TimingMode::Realtime => {
+                realtime::run(
+                    &mut links.mirror,
+                    &mut links.sensor,
+                    &mut controller,
+                    &scenario.trajectory,
+                    empty_record,
+                    &progress,
+                    &mut interrupt,
+                    host_scheduling.clone().unwrap_or_default(),
+                )
+                .await
+            }
         };
         progress.finish();
         // The loop has stopped (coils at zero): from here a signal ends the process at once,

@@ -31,7 +31,7 @@ use super::pairing::{ArrivalClock, CounterUnwrapper, SensorClock};
 use super::plan::PlanSummary;
 use super::scenario::Scenario;
 use super::sensor_link::{CountedSample, ILD_COUNTER_MODULUS, SensorCounters};
-use super::tracking::TrackingSummary;
+use super::tracking::{PlotPoint, TrackingSummary};
 use super::{ScanEnd, ScanResult};
 use crate::imaging::grid::GridMethod;
 use crate::imaging::pipeline::{ImagingOptions, image_samples, write_outputs};
@@ -121,7 +121,7 @@ pub fn write(
             counter_zero_s: 0.0,
         },
     };
-    let period_s = record.angles.period_s();
+    let period_s = record.period_s;
     // The recorded frame: after the lead-in, to the last period done.
     let frame = ScanFrame {
         start_s: record.lead_in_periods as f64 * period_s,
@@ -138,7 +138,7 @@ pub fn write(
                 in_lead_in += 1;
                 return None;
             }
-            let Some(angles) = record.angles.at(t_s) else {
+            let Some(angles) = record.angles.as_ref().and_then(|track| track.at(t_s)) else {
                 unpaired += 1;
                 return None;
             };
@@ -196,7 +196,7 @@ pub fn write(
     } else {
         None
     };
-    let tracking = record.tracking.summary(record.lead_in_periods, period_s);
+    let tracking = record.tracking.summary();
     failed.attempt(
         TRACKING_SVG,
         write_tracking_plot(record, &tracking, plan, out_dir),
@@ -237,7 +237,7 @@ pub fn write(
         "periods": {
             "planned": record.periods_planned,
             "done": record.periods_done,
-            "period_s": record.angles.period_s(),
+            "period_s": record.period_s,
             "saturated": record.saturated_periods,
             "saturated_in_frame": record.saturated_periods - record.saturated_in_lead_in,
             "planned_saturated_share": plan.planned_saturated_share,
@@ -374,19 +374,14 @@ fn write_tracking_plot(
     plan: &PlanSummary,
     out_dir: &Path,
 ) -> anyhow::Result<()> {
-    let period_s = record.angles.period_s();
-    let readings = record.angles.readings_rad();
-    let errors = record.tracking.errors_rad();
-    if readings.is_empty() {
+    let period_s = record.period_s;
+    let points = record.tracking.plot_points();
+    if points.is_empty() {
         return Ok(());
     }
-    let stride = (readings.len() / 4000).max(1);
-    let series = |label: &str, f: &dyn Fn(usize) -> f64| Series {
+    let series = |label: &str, f: &dyn Fn(&PlotPoint) -> f64| Series {
         label: label.into(),
-        points: (0..readings.len())
-            .step_by(stride)
-            .map(|k| ((k + 1) as f64 * period_s, f(k)))
-            .collect(),
+        points: points.iter().map(|point| (point.t_s, f(point))).collect(),
         markers: false,
     };
     let frame_start_s = record.lead_in_periods as f64 * period_s;
@@ -402,12 +397,12 @@ fn write_tracking_plot(
         })
     };
     let angles = vec![
-        series("alpha", &|k| readings[k].alpha * 1e3),
-        series("beta", &|k| readings[k].beta * 1e3),
+        series("alpha", &|p| p.measured_rad.alpha * 1e3),
+        series("beta", &|p| p.measured_rad.beta * 1e3),
     ];
     let error_series = vec![
-        series("alpha", &|k| errors[k].alpha * 1e6),
-        series("beta", &|k| errors[k].beta * 1e6),
+        series("alpha", &|p| p.error_rad.alpha * 1e6),
+        series("beta", &|p| p.error_rad.beta * 1e6),
     ];
     let window = |label: &str, pick: fn(&super::tracking::WindowError) -> f64| Series {
         label: label.into(),
@@ -423,7 +418,7 @@ fn write_tracking_plot(
         window("alpha", |w| w.alpha_rms_relative),
         window("beta", |w| w.beta_rms_relative),
     ];
-    let end_s = readings.len() as f64 * period_s;
+    let end_s = record.tracking.periods() as f64 * period_s;
     let predicted = plan.predicted_tracking;
     for (label, value) in [
         ("alpha predicted", predicted.alpha_rms_relative),

@@ -170,21 +170,22 @@ impl ControllerTiming {
     }
 }
 
-/// Runs until `periods` readings have been answered or the link fails.
+/// Runs until the periods `record` plans have been answered or the link fails; returns the
+/// record filled in.
 #[allow(clippy::too_many_arguments)]
 pub async fn run(
     mirror: &mut MirrorLink,
     sensor: &mut SensorLink,
     controller: &mut ScanController,
     trajectory: &Trajectory,
-    periods: u64,
+    mut record: LoopRecord,
     progress: &Progress,
     interrupt: &mut Interrupt,
     scheduling: HostScheduling,
 ) -> LoopRecord {
     let busy_poll = scheduling.in_effect.busy_poll;
     let period_s = controller.period_s();
-    let mut record = LoopRecord::new(period_s, periods);
+    let periods = record.periods_planned;
     let mut intervals = PeriodRecorder::with_capacity(periods as usize);
     let mut latencies = PeriodRecorder::with_capacity(periods as usize);
     let mut latency_by_reading_s = vec![f64::NAN; periods as usize];
