@@ -169,3 +169,30 @@ fn a_send_the_node_never_takes_is_a_link_timeout() {
         "says the node stopped reading: {stderr}"
     );
 }
+
+#[test]
+fn conformance_against_a_node_that_stopped_reading_fails_within_its_watchdog() {
+    let node = StuckNode::start();
+    let out = tempfile::tempdir().expect("a temporary folder");
+    let junit = out.path().join("conformance.xml");
+    let child = Command::new(scanhil())
+        .args([
+            "conformance",
+            "--fsm",
+            &format!("slcan:{}", node.slave_path),
+        ])
+        .args(["--watchdog-periods", "50", "--junit"])
+        .arg(&junit)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("starting scanhil conformance");
+    let output = exits_within(child, Duration::from_secs(60), "with a full line");
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert_ne!(output.status.code(), Some(0), "checks fail: {stdout}");
+    let xml = std::fs::read_to_string(&junit).expect("the JUnit report is written");
+    assert!(
+        xml.contains("could not be sent within"),
+        "a failure says the node stopped reading: {xml}"
+    );
+}

@@ -89,7 +89,7 @@ impl MirrorLink {
         k: u64,
         command_a: ActuatorPair,
     ) -> Result<SensingPair, LoopError> {
-        self.send_period(&period_frames(k, command_a, self.period_s)?)
+        self.send_period(k, &period_frames(k, command_a, self.period_s)?)
             .await?;
         self.await_reading(k, (k + 1) as f64 * self.period_s).await
     }
@@ -108,9 +108,8 @@ impl MirrorLink {
         command_a: ActuatorPair,
         wait: Duration,
     ) -> Result<(u16, SensingPair), LoopError> {
-        for frame in period_frames(k, command_a, self.period_s)? {
-            self.send_stamped(&frame).await?;
-        }
+        self.send_period(k, &period_frames(k, command_a, self.period_s)?)
+            .await?;
         let t_s = (k + 1) as f64 * self.period_s;
         self.await_reading_where(k, t_s, wait, |offset| offset.cast_signed() >= 0)
             .await
@@ -161,7 +160,7 @@ impl MirrorLink {
     /// Link errors.
     pub async fn send_command(&mut self, k: u64, command_a: ActuatorPair) -> Result<(), LoopError> {
         let frame = coil_command_frame(k, command_a, (k + 1) as f64 * self.period_s)?;
-        self.send_stamped(&frame).await
+        self.send_period(k, &[frame]).await
     }
 
     /// Sends malformed input for period `k`: a Step and a CoilCommand with short payloads.
@@ -178,8 +177,7 @@ impl MirrorLink {
             let frame = CanId::standard(raw_id)
                 .and_then(|can_id| CanFrame::new(can_id, &[0xFF, 0xFF]).ok())
                 .expect("a 2-byte classical frame with an 11-bit id");
-            self.at(t_s);
-            self.port.send(&frame).await?;
+            self.send_period(k, &[StampedFrame { frame, t_s }]).await?;
             sent.push(format!("{name} with 2 data bytes"));
         }
         Ok(sent.join(", "))
@@ -269,21 +267,59 @@ impl MirrorLink {
         self.inbox = inbox;
     }
 
-    /// Sends a frame, its recording stamped with its loop time (lockstep). Unbounded: the
-    /// loops send through [`Self::send_within`], which bounds the wait for a full line.
+    /// Sends period `period`'s frames with one write (SLCAN), each recorded stamped with its
+    /// loop time; declared frame faults act on them on the way out. A node that stopped
+    /// reading fills the line: the send is given up after the watchdog's allowance.
     ///
     /// # Errors
-    /// Link errors.
-    pub async fn send_stamped(&mut self, frame: &StampedFrame) -> Result<(), LoopError> {
-        self.send_period(std::slice::from_ref(frame)).await
+    /// [`LoopError::SendTimeout`], link errors.
+    pub async fn send_period(
+        &mut self,
+        period: u64,
+        frames: &[StampedFrame],
+    ) -> Result<(), LoopError> {
+        let deadline = tokio::time::Instant::now() + self.total_allowance();
+        self.send_until(period, frames, deadline).await
     }
 
-    /// Sends one period's frames with one write (SLCAN), each recorded stamped with its
-    /// loop time (lockstep); declared frame faults act on them on the way out.
+    /// [`Self::send_period`], giving up at `deadline` or when a stopping signal comes: a full
+    /// line never holds the loop past its watchdog or a Ctrl-C.
     ///
     /// # Errors
-    /// Link errors.
-    pub async fn send_period(&mut self, frames: &[StampedFrame]) -> Result<(), LoopError> {
+    /// [`LoopError::SendTimeout`], [`LoopError::Interrupted`], link errors.
+    pub async fn send_within(
+        &mut self,
+        period: u64,
+        frames: &[StampedFrame],
+        deadline: tokio::time::Instant,
+        interrupt: &mut Interrupt,
+    ) -> Result<(), LoopError> {
+        tokio::select! {
+            sent = self.send_until(period, frames, deadline) => sent,
+            signal = interrupt.recv() => Err(LoopError::Interrupted { signal }),
+        }
+    }
+
+    /// Sends `frames`, or [`LoopError::SendTimeout`] when they are not out by `deadline`.
+    async fn send_until(
+        &mut self,
+        period: u64,
+        frames: &[StampedFrame],
+        deadline: tokio::time::Instant,
+    ) -> Result<(), LoopError> {
+        let started = tokio::time::Instant::now();
+        match tokio::time::timeout_at(deadline, self.write_period(frames)).await {
+            Ok(sent) => sent,
+            Err(_elapsed) => Err(LoopError::SendTimeout {
+                link: self.port.name().to_owned(),
+                period,
+                waited: started.elapsed(),
+            }),
+        }
+    }
+
+    /// Queues each frame (through the declared faults) and writes them with one flush.
+    async fn write_period(&mut self, frames: &[StampedFrame]) -> Result<(), LoopError> {
         for frame in frames {
             self.at(frame.t_s);
             match &mut self.faults {
@@ -298,33 +334,6 @@ impl MirrorLink {
         }
         self.port.flush().await?;
         Ok(())
-    }
-
-    /// Sends period `period`'s frames, giving up at `deadline` (the node stopped reading) or
-    /// when a stopping signal comes: a full line never holds the loop past its watchdog or a
-    /// Ctrl-C.
-    ///
-    /// # Errors
-    /// [`LoopError::SendTimeout`], [`LoopError::Interrupted`], link errors.
-    pub async fn send_within(
-        &mut self,
-        period: u64,
-        frames: &[StampedFrame],
-        deadline: tokio::time::Instant,
-        interrupt: &mut Interrupt,
-    ) -> Result<(), LoopError> {
-        let started = tokio::time::Instant::now();
-        let send = self.send_period(frames);
-        tokio::select! {
-            sent = tokio::time::timeout_at(deadline, send) => sent.unwrap_or_else(|_| {
-                Err(LoopError::SendTimeout {
-                    link: self.port.name().to_owned(),
-                    period,
-                    waited: started.elapsed(),
-                })
-            }),
-            signal = interrupt.recv() => Err(LoopError::Interrupted { signal }),
-        }
     }
 
     /// Waits for the next frame, its recording stamped with loop time `t_s` (lockstep).
