@@ -289,6 +289,19 @@ pub struct FrameLedger {
 }
 
 impl FrameLedger {
+    /// The count of each kind of fault injected, by name (drop, delay, duplicate, reorder,
+    /// bit flip).
+    #[must_use]
+    pub fn fault_counts(&self) -> [(&'static str, u64); 5] {
+        [
+            ("dropped", self.dropped),
+            ("delayed", self.delayed),
+            ("duplicated", self.duplicated),
+            ("reordered", self.reordered),
+            ("bit_flipped", self.bit_flipped),
+        ]
+    }
+
     /// Whether every frame is accounted for: delivered = offered - dropped + duplicated - held.
     #[must_use]
     pub fn balances(&self) -> bool {
@@ -630,15 +643,9 @@ mod tests {
         };
         let (out, injector) = run(faults.clone(), 3, 100_000);
         let ledger = injector.ledger();
-        for count in [
-            ledger.dropped,
-            ledger.delayed,
-            ledger.duplicated,
-            ledger.reordered,
-            ledger.bit_flipped,
-        ] {
+        for (kind, count) in ledger.fault_counts() {
             // 1000 expected, sigma about 31.
-            assert!((850..1150).contains(&count), "{ledger:?}");
+            assert!((850..1150).contains(&count), "{kind}: {ledger:?}");
         }
         assert!(ledger.balances(), "{ledger:?}");
         assert_eq!(injector.log().len(), MAX_LOGGED_FAULTS);

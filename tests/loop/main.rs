@@ -4,6 +4,8 @@
 //! checks only that timing statistics are present and ordered.
 
 mod util;
+// A mirror node that stops reading its line, on a real pty (for the peers and stuck-node tests).
+mod deaf_node;
 
 // The host's SLCAN `C` ends the emulator's run, in lockstep and in real time.
 mod slcan_close;

@@ -4,12 +4,12 @@
 
 use std::time::Duration;
 
-use scanhil_protocol::link::{CanLink, PtyPair, Role};
-use scanhil_protocol::message::{AngleReading, CoilCommand, Message};
-use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
+use scanhil_protocol::message::{CoilCommand, Message};
+use scanhil_protocol::plant_units::ActuatorPair;
 
 use crate::controller_watchdog::assert_stopped_cleanly;
-use crate::util::{ServedEmulator, SlcanHost, fixture, scanhil, start_scan_of_node};
+use crate::deaf_node::DeafNode;
+use crate::util::{ServedEmulator, SlcanHost, exits_within, fixture, start_scan_of_node};
 
 /// The current: 1.5 A on both coils when the host stops reading.
 const HELD_A: f64 = 1.5;
@@ -130,68 +130,19 @@ fn a_sensor_line_nobody_reads_never_stalls_the_mirror() {
     );
 }
 
-/// A mirror node that stops reading, on a pty the test holds: it opens the channel for the
-/// host (answering `C`, `Sn`, `O`), then sends AngleReading(j) for j = 0, 1, ... as fast as
-/// the line takes them and never reads again, for at most `limit`. Returns how many it sent.
-fn spawn_deaf_node(pair: PtyPair, limit: Duration) -> std::thread::JoinHandle<u64> {
-    std::thread::spawn(move || {
-        let runtime = tokio::runtime::Builder::new_current_thread()
-            .enable_all()
-            .build()
-            .expect("a runtime");
-        runtime.block_on(async move {
-            let started = tokio::time::Instant::now();
-            let mut link = CanLink::open_pty(pair, None, Role::Device)
-                .await
-                .expect("the device end");
-            while !link.channel_open() {
-                if link.recv_timeout(Duration::from_millis(10)).await.is_err()
-                    || started.elapsed() > limit
-                {
-                    return 0;
-                }
-            }
-            let mut sent = 0u64;
-            while started.elapsed() < limit {
-                let reading = Message::AngleReading(AngleReading::from_rad(
-                    sent as u16,
-                    SensingPair::default(),
-                ))
-                .encode()
-                .expect("encodable");
-                match tokio::time::timeout(Duration::from_millis(100), link.send(&reading)).await {
-                    Ok(Ok(())) => sent += 1,
-                    Ok(Err(_hang_up)) => break,
-                    Err(_line_full) => {}
-                }
-            }
-            sent
-        })
-    })
-}
-
 #[test]
 fn a_node_that_stops_reading_stops_the_scan_with_exit_3() {
-    // Built (if need be) before the node's clock starts.
-    let _ = scanhil();
-    let pair = PtyPair::open().expect("a pty pair");
-    let fsm = format!("slcan:{}", pair.slave_path().display());
-    let node = spawn_deaf_node(pair, Duration::from_secs(60));
+    let node = DeafNode::start();
     let out = tempfile::tempdir().expect("a temporary folder");
     // 20 000 periods of 50 us = 1 s: how long a write may wait for the node to read.
-    let mut child = start_scan_of_node(&fsm, "realtime", 60.0, 20_000, out.path());
+    let child = start_scan_of_node(&node.fsm_uri(), "realtime", 60.0, 20_000, out.path());
     // Bound: the 1 s write allowance, the closing exchange's wait, and a loaded machine's
     // slack. Without the write deadline the host stays blocked in its write for ever.
-    let deadline = std::time::Instant::now() + Duration::from_secs(30);
-    while child.try_wait().expect("waiting for scanhil").is_none() {
-        if std::time::Instant::now() > deadline {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("scanhil still blocked 30 s after the node stopped reading");
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    let output = child.wait_with_output().expect("scanhil's output");
+    let output = exits_within(
+        child,
+        Duration::from_secs(30),
+        "after the node stopped reading",
+    );
     let stderr = String::from_utf8_lossy(&output.stderr);
     // Exit 3, the reason on stderr and in the report, a recording that decodes; the zero
     // command cannot go out on a line the node does not read.
@@ -202,7 +153,5 @@ fn a_node_that_stops_reading_stops_the_scan_with_exit_3() {
         "the node stopped reading",
         false,
     );
-    drop(out);
-    // The node's thread ends once the host has gone (hang-up) or at its limit.
-    assert!(node.join().expect("the node thread") > 100);
+    assert!(node.readings_sent() > 100, "the node was talking");
 }
