@@ -15,9 +15,14 @@ use scanhil_protocol::message::{
 };
 use scanhil_protocol::plant_units::SensingPair;
 
-/// An empty record of `periods` periods at the test controller's rate.
-fn empty_record(periods: u64) -> LoopRecord {
-    LoopRecord::new(controller().period_s(), periods)
+/// A host loop of `periods` periods, filing into an inbox named `test`.
+fn host_loop<'a>(
+    controller: &'a mut ScanController,
+    trajectory: &'a Trajectory,
+    periods: u64,
+) -> HostLoop<'a> {
+    let record = LoopRecord::new(controller.period_s(), periods);
+    HostLoop::new(controller, trajectory, record, HostInbox::new("test"))
 }
 
 fn controller() -> ScanController {
@@ -76,12 +81,7 @@ fn a_run_sends_command_and_step_per_period_counts_what_it_files_and_ends_with_th
     let mut controller = controller();
     let period_s = controller.period_s();
     let trajectory = trajectory();
-    let mut host = HostLoop::new(
-        &mut controller,
-        &trajectory,
-        empty_record(2),
-        HostInbox::new("test"),
-    );
+    let mut host = host_loop(&mut controller, &trajectory, 2);
     for k in 0..2u64 {
         let sent = decoded(host.next_action());
         assert_eq!(sent.len(), 2);
@@ -147,12 +147,7 @@ fn the_nodes_link_timeout_fault_stops_the_run_with_a_zero_command() {
     let mut controller = controller();
     let period_s = controller.period_s();
     let trajectory = trajectory();
-    let mut host = HostLoop::new(
-        &mut controller,
-        &trajectory,
-        empty_record(10),
-        HostInbox::new("test"),
-    );
+    let mut host = host_loop(&mut controller, &trajectory, 10);
     decoded(host.next_action());
     assert_eq!(host.on_frame(&reading(0), now()), Heard::Reading(0));
     decoded(host.next_action());
@@ -193,12 +188,7 @@ fn silence_stops_a_period_but_ends_the_run_quietly_after_the_last() {
     };
     let mut controller = controller();
     let trajectory = trajectory();
-    let mut host = HostLoop::new(
-        &mut controller,
-        &trajectory,
-        empty_record(1),
-        HostInbox::new("test"),
-    );
+    let mut host = host_loop(&mut controller, &trajectory, 1);
     decoded(host.next_action());
     assert_eq!(host.on_frame(&reading(0), now()), Heard::Reading(0));
     decoded(host.next_action());
@@ -210,12 +200,7 @@ fn silence_stops_a_period_but_ends_the_run_quietly_after_the_last() {
         "a node without the end exchange"
     );
 
-    let mut host = HostLoop::new(
-        &mut controller,
-        &trajectory,
-        empty_record(1),
-        HostInbox::new("test"),
-    );
+    let mut host = host_loop(&mut controller, &trajectory, 1);
     decoded(host.next_action());
     host.on_error(timeout(0));
     decoded(host.next_action());

@@ -107,16 +107,23 @@ async fn the_emulated_sensor_is_configured_and_read_back_then_streams() {
     assert_eq!(cycle.extras, vec![3]);
 }
 
-#[tokio::test]
-async fn a_different_measuring_rate_is_refused_naming_both_rates() {
+/// The set-up's refusal against the emulated sensor when the rig expects `change` of what
+/// the scene's sensor is.
+async fn refusal(change: impl FnOnce(RigSensor) -> RigSensor) -> String {
     let scene = scene();
     let (mut host, mut device) = host_and_emulated_sensor(&scene);
-    let expected = RigSensor {
-        measuring_rate_hz: 10_000.0,
-        ..expectation(&scene)
-    };
+    let expected = change(expectation(&scene));
     let error = set_up(&mut host, &mut device, &expected).await.unwrap_err();
-    let text = error.to_string();
+    error.to_string()
+}
+
+#[tokio::test]
+async fn a_different_measuring_rate_is_refused_naming_both_rates() {
+    let text = refusal(|sensor| RigSensor {
+        measuring_rate_hz: 10_000.0,
+        ..sensor
+    })
+    .await;
     assert!(
         text.starts_with("sensor reports measuring rate 20000 Hz, the rig expects 10000 Hz"),
         "{text}"
@@ -129,23 +136,21 @@ async fn a_different_measuring_rate_is_refused_naming_both_rates() {
 
 #[tokio::test]
 async fn a_different_measuring_range_or_an_unknown_rate_is_refused() {
-    let scene = scene();
-    let (mut host, mut device) = host_and_emulated_sensor(&scene);
-    let expected = RigSensor {
+    let text = refusal(|sensor| RigSensor {
         range_span_mm: 50.0,
-        ..expectation(&scene)
-    };
-    let error = set_up(&mut host, &mut device, &expected).await.unwrap_err();
+        ..sensor
+    })
+    .await;
     assert_eq!(
-        error.to_string(),
+        text,
         "sensor reports measuring range 100.00 mm, the rig expects 50.00 mm"
     );
-    let odd = RigSensor {
+    let text = refusal(|sensor| RigSensor {
         measuring_rate_hz: 12_345.0,
-        ..expectation(&scene)
-    };
-    let error = set_up(&mut host, &mut device, &odd).await.unwrap_err();
-    assert!(error.to_string().contains("12345 Hz"), "{error}");
+        ..sensor
+    })
+    .await;
+    assert!(text.contains("12345 Hz"), "{text}");
 }
 
 /// A scripted device on the pty master: answers each command line by `answer`.
