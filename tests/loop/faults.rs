@@ -90,3 +90,55 @@ fn a_fault_override_on_the_command_line_is_checked_as_the_file_is() {
         "{stderr}"
     );
 }
+
+#[test]
+fn frame_faults_in_real_time_are_injected_passed_over_and_reported() {
+    let out = tempfile::tempdir().expect("a temporary folder");
+    // Bit flips rarer than the rest: a corrupted angle is taken for its period in real time
+    // (it cannot be asked for again), and each one kicks the controller.
+    let rates = "{\"drop_rate\":0.005,\"delay_rate\":0.005,\"delay_periods\":2,\
+                 \"duplicate_rate\":0.005,\"reorder_rate\":0.005,\"bit_flip_rate\":0.0005}";
+    let host_to_node = format!("host_to_node={rates}");
+    let node_to_host = format!("node_to_host={rates}");
+    let args = crate::util::realtime_scan_args(
+        out.path(),
+        "0.5",
+        &["--fault", &host_to_node, "--fault", &node_to_host],
+    );
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let output = run_scanhil(&args);
+    assert_success(&output, "a real-time scan with frame faults");
+    let report = report(out.path());
+    assert_eq!(
+        report["outcome"]["complete"], true,
+        "{:#}",
+        report["outcome"]
+    );
+    assert_eq!(report["periods"]["done"], 10_000, "{:#}", report["periods"]);
+    let faults = &report["faults"];
+    for direction in ["host_to_node", "node_to_host"] {
+        let frames = &faults["injected"]["frames"][direction];
+        assert_eq!(frames["balances"], true, "{faults:#}");
+        for kind in [
+            "dropped",
+            "delayed",
+            "duplicated",
+            "reordered",
+            "bit_flipped",
+        ] {
+            assert!(
+                frames["ledger"][kind].as_u64().unwrap() > 0,
+                "{direction}: {kind}: {faults:#}"
+            );
+        }
+    }
+    // The host passes over duplicated and delayed readings (late), never taking one for a
+    // reading 2^16 periods on, and counts the ones that went missing.
+    let host = &faults["host_detected"];
+    assert!(host["late_readings"].as_u64().unwrap() > 0, "{host}");
+    assert!(host["angle_sequence_gaps"].as_u64().unwrap() > 0, "{host}");
+    assert_eq!(host["stopped_by"], serde_json::Value::Null, "{host}");
+    let node = &faults["node_detected"];
+    assert!(node["command_gaps"].as_u64().unwrap() > 0, "{node}");
+    println!("host {host}\nnode {node}");
+}

@@ -176,6 +176,28 @@ impl HostInbox {
         offset
     }
 
+    /// Real time: the period of a reading with counter `seq` taken while period `expected`
+    /// is awaited, or `None` for a reading the loop must pass over (counted):
+    /// - the awaited one, or one up to `max_ahead` periods ahead (the readings between went
+    ///   missing: a sequence gap): `Some(period)`;
+    /// - one behind it (a duplicate, or a frame delayed past the next): a late reading;
+    /// - further ahead than `max_ahead` (the node's watchdog would have stopped it long before:
+    ///   a corrupted counter): implausible.
+    ///
+    /// Angles are not judged here: real time cannot ask for a reading again, and a mirror
+    /// really driven beyond its range (a corrupted command, the power limit) must still be
+    /// seen and controlled back, not ignored.
+    pub fn place_reading(&mut self, seq: u16, expected: u64, max_ahead: u64) -> Option<u64> {
+        let offset = seq.wrapping_sub(expected as u16);
+        if offset < 0x8000 && u64::from(offset) > max_ahead {
+            self.counters.angle_readings += 1;
+            self.count_implausible();
+            return None;
+        }
+        let offset = self.count_reading(seq, expected);
+        (offset < 0x8000).then(|| expected + u64::from(offset))
+    }
+
     /// Counts an awaited reading taken as corrupted ([`plausible_angles`]).
     pub fn count_implausible(&mut self) {
         self.counters.implausible_readings += 1;
@@ -204,5 +226,38 @@ impl HostInbox {
     #[must_use]
     pub fn counters(&self) -> MirrorLinkCounters {
         self.counters
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn real_time_readings_are_placed_passed_over_when_late_or_implausible() {
+        let mut inbox = HostInbox::new("test");
+        let expected = 70_000; // counters wrap at 2^16
+        let seq = |period: u64| period as u16;
+        assert_eq!(
+            inbox.place_reading(seq(expected), expected, 200),
+            Some(expected)
+        );
+        // Three readings went missing: taken as the one three periods on.
+        assert_eq!(
+            inbox.place_reading(seq(expected + 3), expected, 200),
+            Some(expected + 3)
+        );
+        // A duplicate or a delayed reading: passed over, never taken as 2^16 periods on.
+        assert_eq!(inbox.place_reading(seq(expected - 1), expected, 200), None);
+        // A counter far beyond what the node's watchdog allows: corrupted.
+        assert_eq!(
+            inbox.place_reading(seq(expected + 4096), expected, 200),
+            None
+        );
+        let counters = inbox.counters();
+        assert_eq!(counters.angle_readings, 4);
+        assert_eq!(counters.angle_sequence_gaps, 1);
+        assert_eq!(counters.late_readings, 1);
+        assert_eq!(counters.implausible_readings, 1);
     }
 }

@@ -116,7 +116,8 @@ impl MirrorLink {
     }
 
     /// Real time: waits for the next AngleReading the clock master sends; returns its period
-    /// (unwrapped against `expected`) and angles.
+    /// (unwrapped against `expected`) and angles. Late readings and corrupted counters are
+    /// passed over ([`HostInbox::place_reading`]).
     ///
     /// # Errors
     /// [`LoopError`] as for [`Self::exchange_lockstep`].
@@ -128,9 +129,8 @@ impl MirrorLink {
             let frame = tokio::time::timeout_at(deadline, self.recv_at(t_s))
                 .await
                 .map_err(|_| self.timeout(expected, allowance))??;
-            if let Some((seq, angles)) = self.classify(&frame, t_s)? {
-                let offset = self.inbox.count_reading(seq, expected);
-                return Ok((expected + u64::from(offset), angles));
+            if let Some(reading) = self.place(&frame, t_s, expected)? {
+                return Ok(reading);
             }
         }
     }
@@ -143,13 +143,10 @@ impl MirrorLink {
     /// [`LoopError`] as for [`Self::exchange_lockstep`], but no timeout (the caller keeps time).
     pub fn try_reading(&mut self, expected: u64) -> Result<Option<(u64, SensingPair)>, LoopError> {
         let t_s = (expected + 1) as f64 * self.period_s;
-        self.at(t_s);
-        while let Some(frame) = self.port.try_recv()? {
-            if let Some((seq, angles)) = self.classify(&frame, t_s)? {
-                let offset = self.inbox.count_reading(seq, expected);
-                return Ok(Some((expected + u64::from(offset), angles)));
+        while let Some(frame) = self.try_recv_at(t_s)? {
+            if let Some(reading) = self.place(&frame, t_s, expected)? {
+                return Ok(Some(reading));
             }
-            self.at(t_s);
         }
         Ok(None)
     }
@@ -356,6 +353,27 @@ impl MirrorLink {
         }
     }
 
+    /// [`Self::recv_at`] without waiting: the next frame if one is there (through the
+    /// declared faults, as `recv_at`).
+    ///
+    /// # Errors
+    /// Link errors.
+    fn try_recv_at(&mut self, t_s: f64) -> Result<Option<CanFrame>, LinkError> {
+        self.at(t_s);
+        let Some(faults) = &mut self.faults else {
+            return self.port.try_recv();
+        };
+        loop {
+            if let Some(frame) = faults.next_incoming(t_s) {
+                return Ok(Some(frame));
+            }
+            match self.port.try_recv()? {
+                Some(frame) => faults.incoming(&frame, t_s),
+                None => return Ok(None),
+            }
+        }
+    }
+
     /// The watchdog's whole allowance: its periods times the allowance per answer.
     #[must_use]
     pub fn total_allowance(&self) -> Duration {
@@ -421,6 +439,23 @@ impl MirrorLink {
                 }
             }
         }
+    }
+
+    /// Real time: files a received frame; the period and angles of a reading the loop takes.
+    fn place(
+        &mut self,
+        frame: &CanFrame,
+        t_s: f64,
+        expected: u64,
+    ) -> Result<Option<(u64, SensingPair)>, LoopError> {
+        let Some((seq, angles)) = self.classify(frame, t_s)? else {
+            return Ok(None);
+        };
+        let max_ahead = u64::from(self.watchdog_periods);
+        Ok(self
+            .inbox
+            .place_reading(seq, expected, max_ahead)
+            .map(|period| (period, angles)))
     }
 
     /// Files a received frame at loop time `t_s` (see [`HostInbox::classify`]).

@@ -243,19 +243,22 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         let empty_record = LoopRecord::new(period_s, periods)
             .with_lead_in(lead_in_periods)
             .keeping_angles(rig.sensor.is_some());
+        // Declared frame faults act on the mirror's link in both timing modes.
+        let repeats_steps = match LinkFaults::new(&scenario.faults, scenario.seed, period_s) {
+            Some(faults) => {
+                links.mirror.set_faults(faults);
+                true
+            }
+            None => false,
+        };
         let record = match scenario.timing.mode {
             TimingMode::Lockstep => {
                 // Injected frame faults are survived by repeating a Step that got no answer.
-                let faults = LinkFaults::new(&scenario.faults, scenario.seed, period_s);
-                let repeats_steps = faults.is_some();
                 let tries = if repeats_steps {
                     scenario.timing.watchdog_periods
                 } else {
                     1
                 };
-                if let Some(faults) = faults {
-                    links.mirror.set_faults(faults);
-                }
                 let host = HostLoop::new(
                     &mut controller,
                     &scenario.trajectory,

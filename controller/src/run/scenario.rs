@@ -437,12 +437,6 @@ impl Scenario {
                 path: self.path.clone(),
                 source,
             })?;
-        if self.faults.frames_active() && self.timing.mode != TimingMode::Lockstep {
-            return Err(invalid(
-                "faults",
-                "frame faults (host_to_node, node_to_host) are injected in lockstep only".into(),
-            ));
-        }
         if self.faults.sensor.is_active() && !links_are_emulated {
             return Err(invalid(
                 "faults.sensor",
