@@ -5,7 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use scanhil_controller::run::output::REPORT;
-use scanhil_controller::run::scenario::{NodeLink, Scenario, TimingMode};
+use scanhil_controller::run::scenario::{NodeLink, Scenario, ScenarioError, TimingMode};
 use scanhil_controller::run::{ScanEnd, ScanOptions, default_out_dir, run_scan};
 
 /// Exit status of a scan that stopped early (link timeout, node fault, link failure, a
@@ -107,8 +107,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         sched_fifo_priority: args.sched_fifo_priority,
         probe_s: args.probe_s,
     };
-    let result = run_scan(&scenario, &options)
-        .with_context(|| format!("scan {}", args.scenario.display()))?;
+    // A scenario error names its file already; anything else gets the scan's name.
+    let result = run_scan(&scenario, &options).map_err(|error| {
+        if error.chain().any(|cause| cause.is::<ScenarioError>()) {
+            error
+        } else {
+            error.context(format!("scan {}", args.scenario.display()))
+        }
+    })?;
     let report_path = out_dir.join(REPORT);
     if !result.failed_outputs.contains(REPORT) {
         let report: serde_json::Value = serde_json::from_str(

@@ -384,7 +384,7 @@ impl Scenario {
             return Err(invalid(
                 "duration_s",
                 format!(
-                    "{} s must be positive, finite and at most {MAX_DURATION_S} s",
+                    "{:e} s must be positive, finite and at most {MAX_DURATION_S} s",
                     self.duration_s
                 ),
             ));
