@@ -152,8 +152,16 @@ async fn a_link_failure_on_slcan_sends_the_fault_frame_and_says_why() {
         end_on_link_error(&mut node, &mut links, io_failure().into()),
         async {
             let wait = Duration::from_secs(5);
-            let fault = host.recv_timeout(wait).await.unwrap().expect("a fault frame");
-            let status = host.recv_timeout(wait).await.unwrap().expect("a status frame");
+            let fault = host
+                .recv_timeout(wait)
+                .await
+                .unwrap()
+                .expect("a fault frame");
+            let status = host
+                .recv_timeout(wait)
+                .await
+                .unwrap()
+                .expect("a status frame");
             // Closing the channel ends the node's linger at once.
             drop(host);
             (fault, status)

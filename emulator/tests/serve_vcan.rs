@@ -21,6 +21,9 @@ mod vcan {
         "/../fixtures/scenes/protocol-only.json"
     );
 
+    /// The tests share one bus: one at a time, or they would see each other's frames.
+    static BUS: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
+
     /// `CAN_ERR_ACK` and `CAN_ERR_BUSOFF` (linux/can/error.h).
     const CAN_ERR_ACK: u32 = 0x20;
     const CAN_ERR_BUSOFF: u32 = 0x40;
@@ -30,18 +33,18 @@ mod vcan {
     /// the watchdog cannot pose as the cause.
     const EXIT_BOUND: Duration = Duration::from_secs(5);
 
-    /// The emulator serving the mirror node on vcan0 in lockstep, with the lines it prints.
+    /// The emulator serving the mirror node on vcan0, with the lines it prints.
     struct Emulator {
         child: Child,
         stdout: mpsc::Receiver<String>,
     }
 
     impl Emulator {
-        fn start() -> Emulator {
+        /// Starts `serve` on vcan0 with `args` (the timing), and reads its ready line.
+        fn start(args: &[&str]) -> Emulator {
             let mut child = Command::new(env!("CARGO_BIN_EXE_scanhil-emulator"))
-                .args(["serve", "--scene", SCENE])
-                .args(["--fsm", "socketcan:vcan0", "--timing", "lockstep"])
-                .args(["--watchdog-periods", "1000"])
+                .args(["serve", "--scene", SCENE, "--fsm", "socketcan:vcan0"])
+                .args(args)
                 .stdout(Stdio::piped())
                 .stderr(Stdio::piped())
                 .spawn()
@@ -55,7 +58,10 @@ mod vcan {
                     }
                 }
             });
-            Emulator { child, stdout }
+            let emulator = Emulator { child, stdout };
+            let ready = emulator.line(Duration::from_secs(30));
+            assert_eq!(ready["event"], "ready", "{ready}");
+            emulator
         }
 
         /// The next JSON line it prints, within `wait`.
@@ -119,56 +125,24 @@ mod vcan {
         message.encode().unwrap()
     }
 
-    #[tokio::test]
-    async fn vcan_bus_off_ends_serve_with_zero_coils_the_fault_frame_and_exit_3() {
-        let uri: LinkUri = "socketcan:vcan0".parse().unwrap();
-        let mut host = CanLink::open(&uri, Role::Host)
-            .await
-            .expect("vcan0 must be up");
-        let mut emulator = Emulator::start();
-        let ready = emulator.line(Duration::from_secs(30));
-        assert_eq!(ready["event"], "ready", "{ready}");
-        // One period with current on the coils: the bus-off must find them held.
-        let command = CoilCommand::from_amps(0, ActuatorPair { a: 1.0, b: -0.5 });
-        host.send(&encode(Message::CoilCommand(command)))
-            .await
-            .unwrap();
-        host.send(&encode(Message::Step { step: 0 })).await.unwrap();
-        next_frame(&mut host, Duration::from_secs(10), |m| {
-            matches!(m, Message::AngleReading(_))
-        })
-        .await;
-
+    /// Writes an ACK error frame, then a bus-off one, to vcan0 from a raw socket; returns when.
+    fn inject_ack_then_bus_off() -> Instant {
         let injector = socketcan::CanSocket::open("vcan0").unwrap();
         for class in [CAN_ERR_ACK, CAN_ERR_BUSOFF] {
             injector
                 .write_frame(&CanErrorFrame::new_error(class, &[]).unwrap())
                 .expect("vcan0 takes an error frame from a raw socket");
         }
-        let injected = Instant::now();
+        Instant::now()
+    }
 
-        // The node's fault frame still reaches the bus (vcan0 has no real bus-off).
-        let fault = next_frame(
-            &mut host,
-            EXIT_BOUND,
-            |m| matches!(m, Message::Fault(f) if f.node == NodeId::Fsm),
-        )
-        .await;
-        let Message::Fault(fault) = fault else {
-            unreachable!()
-        };
-        assert_eq!((fault.kind, fault.detail), (FaultKind::LinkTimeout, 0));
-        let status = next_frame(
-            &mut host,
-            EXIT_BOUND,
-            |m| matches!(m, Message::Status(s) if s.node == NodeId::Fsm),
-        )
-        .await;
-        assert!(
-            matches!(status, Message::Status(s) if s.state == NodeState::Fault),
-            "{status:?}"
-        );
-
+    /// Asserts the emulator ended on the bus-off injected at `injected`: exit 3 within
+    /// [`EXIT_BOUND`], the summary's outcome, reason, error frame count, fault state and zero
+    /// currents, the reason on stderr. Returns the summary.
+    fn assert_ended_by_the_bus_off(
+        emulator: &mut Emulator,
+        injected: Instant,
+    ) -> serde_json::Value {
         let status = emulator.exit_within(EXIT_BOUND);
         let ended_after = injected.elapsed();
         let stderr = emulator.stderr();
@@ -194,5 +168,85 @@ mod vcan {
             "{stderr}"
         );
         eprintln!("serve ended {ended_after:?} after the bus-off: {summary}");
+        summary
+    }
+
+    /// The host on vcan0 commanding 1 A / -0.5 A (period 0).
+    async fn host_with_current() -> CanLink {
+        let uri: LinkUri = "socketcan:vcan0".parse().unwrap();
+        let mut host = CanLink::open(&uri, Role::Host)
+            .await
+            .expect("vcan0 must be up");
+        let command = CoilCommand::from_amps(0, ActuatorPair { a: 1.0, b: -0.5 });
+        host.send(&encode(Message::CoilCommand(command)))
+            .await
+            .unwrap();
+        host
+    }
+
+    #[tokio::test]
+    async fn vcan_bus_off_ends_serve_with_zero_coils_the_fault_frame_and_exit_3() {
+        let _bus = BUS.lock().await;
+        let mut emulator = Emulator::start(&["--timing", "lockstep", "--watchdog-periods", "1000"]);
+        // One period with current on the coils: the bus-off must find them held.
+        let mut host = host_with_current().await;
+        host.send(&encode(Message::Step { step: 0 })).await.unwrap();
+        next_frame(&mut host, Duration::from_secs(10), |m| {
+            matches!(m, Message::AngleReading(_))
+        })
+        .await;
+
+        let injected = inject_ack_then_bus_off();
+        // The node's fault frame still reaches the bus (vcan0 has no real bus-off).
+        let fault = next_frame(
+            &mut host,
+            EXIT_BOUND,
+            |m| matches!(m, Message::Fault(f) if f.node == NodeId::Fsm),
+        )
+        .await;
+        let Message::Fault(fault) = fault else {
+            unreachable!()
+        };
+        assert_eq!((fault.kind, fault.detail), (FaultKind::LinkTimeout, 0));
+        let status = next_frame(
+            &mut host,
+            EXIT_BOUND,
+            |m| matches!(m, Message::Status(s) if s.node == NodeId::Fsm),
+        )
+        .await;
+        assert!(
+            matches!(status, Message::Status(s) if s.state == NodeState::Fault),
+            "{status:?}"
+        );
+        assert_ended_by_the_bus_off(&mut emulator, injected);
+    }
+
+    /// Real time: the clock runs from the ready line on SocketCAN; the bus-off ends the ticks
+    /// and the timing measured so far stays in the summary. (The node's last frames are not
+    /// looked for here: they go out among 20 000 readings a second.)
+    #[tokio::test]
+    async fn vcan_bus_off_ends_a_real_time_serve_with_its_timing_and_exit_3() {
+        let _bus = BUS.lock().await;
+        // The watchdog allows 10 s of silence (200 000 periods), so it cannot pose as the cause.
+        let mut emulator = Emulator::start(&[
+            "--timing",
+            "realtime",
+            "--watchdog-periods",
+            "200000",
+            "--probe-s",
+            "0",
+        ]);
+        let mut host = host_with_current().await;
+        for _ in 0..2 {
+            next_frame(&mut host, Duration::from_secs(10), |m| {
+                matches!(m, Message::AngleReading(_))
+            })
+            .await;
+        }
+        let summary = assert_ended_by_the_bus_off(&mut emulator, inject_ack_then_bus_off());
+        assert!(
+            summary["timing"]["deadline_held"].is_boolean(),
+            "the timing so far: {summary}"
+        );
     }
 }
