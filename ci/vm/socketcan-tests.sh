@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
-# ci/vm/socketcan-tests.sh [--direct] [TEST-FILTER...]: the SocketCAN link's tests on a real vcan0.
+# ci/vm/socketcan-tests.sh [--direct] [TEST-FILTER...]: the tests that need a real vcan0: the
+# SocketCAN link's (scanhil-protocol) and `scanhil-emulator serve` as a process on the bus.
 #
-# Builds scanhil-protocol's test binaries on the host with the cargo features in
-# SCANHIL_VCAN_FEATURES (default "vcan": the tests that need a live vcan0) and the cargo target
-# selection in SCANHIL_VCAN_CARGO_TARGETS (default "--test link_socketcan_vcan", where the link's
-# vcan tests live; "--tests" builds every test target), finds them through cargo's
-# --message-format=json, and runs them:
+# Builds the test binaries of each package in SUITES on the host with the cargo features in
+# SCANHIL_VCAN_FEATURES (default "vcan": the tests that need a live vcan0; each package has the
+# feature) and its cargo target selection (scanhil-protocol: "--test link_socketcan_vcan";
+# scanhil-emulator: "--test serve_vcan"; SCANHIL_VCAN_CARGO_TARGETS, e.g. "--tests" for every
+# test target, replaces both), finds them through cargo's --message-format=json, and runs them:
 #   - by default inside the throwaway VM of ci/vcan-vm.sh (vcan0 is created there);
 #   - with --direct right here, on a host whose kernel has CAN and whose vcan0 is up
 #     (sudo modprobe vcan; sudo ip link add dev vcan0 type vcan; sudo ip link set up vcan0).
@@ -18,8 +19,11 @@ set -euo pipefail
 
 repo=$(cd "$(dirname "${BASH_SOURCE[0]}")/../.." && pwd -P)
 readonly FEATURES=${SCANHIL_VCAN_FEATURES:-vcan}
-read -r -a CARGO_TARGETS <<<"${SCANHIL_VCAN_CARGO_TARGETS:---test link_socketcan_vcan}"
-readonly CARGO_TARGETS
+# Each package with its vcan test targets: "PACKAGE CARGO-TARGET-ARGS...".
+readonly SUITES=(
+    "scanhil-protocol ${SCANHIL_VCAN_CARGO_TARGETS:---test link_socketcan_vcan}"
+    "scanhil-emulator ${SCANHIL_VCAN_CARGO_TARGETS:---test serve_vcan}"
+)
 
 # Guest half: runs each binary (up to --) with the filters after it; exits 1 if any failed.
 in_vm() {
@@ -39,11 +43,16 @@ fail() {
     exit 1
 }
 
-# The test executables cargo builds for scanhil-protocol with $FEATURES, one a line.
+# The test executables cargo builds for each of SUITES with $FEATURES, one a line.
 build_test_binaries() {
     command -v python3 >/dev/null 2>&1 || fail "python3 is needed to read cargo's JSON messages"
-    echo "socketcan-tests: cargo test -p scanhil-protocol --features $FEATURES ${CARGO_TARGETS[*]} --no-run" >&2
-    cargo test -p scanhil-protocol --features "$FEATURES" "${CARGO_TARGETS[@]}" --no-run --message-format=json |
+    local suite package targets
+    for suite in "${SUITES[@]}"; do
+        read -r package targets <<<"$suite"
+        read -r -a targets <<<"$targets"
+        echo "socketcan-tests: cargo test -p $package --features $FEATURES ${targets[*]} --no-run" >&2
+        cargo test -p "$package" --features "$FEATURES" "${targets[@]}" --no-run --message-format=json
+    done |
         python3 -c '
 import json, sys
 for line in sys.stdin:
@@ -77,7 +86,9 @@ host() {
     local binaries=()
     mapfile -t binaries < <(build_test_binaries)
     # (The process substitution hides cargo's status: an empty list is the sign of a failed build.)
-    ((${#binaries[@]} > 0)) || fail "cargo built no test binary for scanhil-protocol --features $FEATURES ${CARGO_TARGETS[*]}"
+    ((${#binaries[@]} == ${#SUITES[@]})) || [[ -n ${SCANHIL_VCAN_CARGO_TARGETS:-} ]] ||
+        fail "cargo built ${#binaries[@]} test binaries for ${#SUITES[@]} suites (--features $FEATURES): a build failed"
+    ((${#binaries[@]} > 0)) || fail "cargo built no test binary (--features $FEATURES)"
 
     log=$(mktemp)
     trap 'rm -f "$log"' EXIT

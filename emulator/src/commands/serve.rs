@@ -8,7 +8,7 @@ use scanhil_protocol::fault_injection::SensorFaults;
 
 use scanhil_emulator::serve::misbehaviour::Misbehaviour;
 use scanhil_emulator::serve::{
-    DEFAULT_HEARTBEAT_HZ, DEFAULT_PROBE_S, MAX_PROBE_S, ServeConfig, ServeOutcome, TimingMode,
+    DEFAULT_HEARTBEAT_HZ, DEFAULT_PROBE_S, MAX_PROBE_S, ServeConfig, TimingMode,
 };
 use scanhil_protocol::scheduling::{self, RealtimeOptions};
 
@@ -76,7 +76,8 @@ fn parse_sensor_faults(text: &str) -> Result<SensorFaults, String> {
 
 /// Runs the node(s) until the controller closes the link, the watchdog fires or the duration
 /// ends. Prints a `ready` JSON line (with any pty paths it created) when listening, and a
-/// `summary` JSON line at the end. Exit status 0 after a clean run, 3 after a link timeout.
+/// `summary` JSON line at the end. Exit status 0 after a clean run, 3 after a link timeout or
+/// a link failure (bus-off, an I/O error: [`scanhil_emulator::serve::ServeOutcome::exit_status`]).
 ///
 /// # Errors
 /// A scene that does not load, a link that does not open, or a plant error.
@@ -114,8 +115,5 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         probe_s: args.probe_s,
     };
     let outcome = scanhil_emulator::serve::serve(&config).context("serve")?;
-    Ok(match outcome {
-        ServeOutcome::Finished => ExitCode::SUCCESS,
-        ServeOutcome::LinkTimeout => ExitCode::from(3),
-    })
+    Ok(ExitCode::from(outcome.exit_status()))
 }

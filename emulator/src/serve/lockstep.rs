@@ -16,6 +16,11 @@
 //! queued, `ended_by: host_stopped_reading`, exit 3), instead of leaving the node blocked in a
 //! write with current on the coils. The node's last frames never wait either
 //! ([`send_last_frames`]).
+//!
+//! A link error ends this loop and comes back to `serve`, which ends the run on it
+//! ([`super::link_failure`]): the host's hang-up finishes it; a failure (SocketCAN bus-off, an
+//! OS error on a line, the sensor's line failing) zeroes the coils as the watchdog does,
+//! attempts the node's fault frame and exits 3 with the reason in the summary.
 
 use std::time::Duration;
 
@@ -24,6 +29,7 @@ use anyhow::bail;
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::link::Watchdog;
 
+use super::link_failure::{wind_down, with_wind_down};
 use super::lockstep_node::{LockstepNode, NodeReply, NodeSend};
 use super::mirror_node::MirrorNode;
 use super::misbehaviour::{Answer, LATE_ANSWER_ALLOWANCES, Misbehaving};
@@ -36,7 +42,9 @@ use super::{LoopReport, RunEnd, ServeConfig, ServeLinks, ServeOutcome};
 /// [`Misbehaving`] (a deliberately non-conforming node).
 ///
 /// # Errors
-/// A link error other than a hang-up, or a plant error (non-finite command).
+/// A link error, the host's hang-up included (`serve` ends the run on it as
+/// [`super::link_failure::end_on_link_error`] says), a plant error (non-finite command), a frame
+/// that cannot be encoded, or `--misbehave dies-on-garbage` dying.
 pub async fn run(
     node: &mut MirrorNode,
     links: &mut ServeLinks,
@@ -64,30 +72,20 @@ pub async fn run(
         };
         let frame = match received {
             None => {
-                send_last_frames(links, &node.on_link_timeout(config.watchdog_periods)?).await?;
-                linger(links).await?;
+                let frames = node.on_link_timeout(config.watchdog_periods)?;
+                let wound_down = wind_down(links, &frames, true).await;
+                let reason = format!(
+                    "link timeout: no frame from the controller for {} periods of {:?}",
+                    config.watchdog_periods, allowance
+                );
                 return Ok(LoopReport {
                     outcome: ServeOutcome::LinkTimeout,
                     ended_by: RunEnd::Watchdog,
                     timing: serde_json::Value::Null,
-                    error: Some(format!(
-                        "link timeout: no frame from the controller for {} periods of {:?}",
-                        config.watchdog_periods, allowance
-                    )),
+                    error: Some(with_wind_down(reason, wound_down)),
                 });
             }
-            Some(Err(err)) => {
-                return match RunEnd::from_link_error(&err) {
-                    Some(ended_by) => Ok(LoopReport {
-                        outcome: ServeOutcome::Finished,
-                        ended_by,
-                        timing: serde_json::Value::Null,
-                        error: None,
-                    }),
-                    None => Err(err.into()),
-                };
-            }
-            Some(Ok(frame)) => frame,
+            Some(received) => received?,
         };
         if let Some(misbehaving) = &misbehaving
             && misbehaving.dies(links.fsm.stats().slcan.malformed_lines)
@@ -134,14 +132,14 @@ pub async fn run(
                 if let Ok(sent) = tokio::time::timeout(write_allowance, send).await {
                     sent?;
                 } else {
-                    send_last_frames(links, &node.on_link_timeout(config.watchdog_periods)?)
-                        .await?;
-                    linger(links).await?;
+                    let frames = node.on_link_timeout(config.watchdog_periods)?;
+                    let reason = host_stopped_reading(links, write_allowance);
+                    let wound_down = wind_down(links, &frames, true).await;
                     return Ok(LoopReport {
                         outcome: ServeOutcome::LinkTimeout,
                         ended_by: RunEnd::HostStoppedReading,
                         timing: serde_json::Value::Null,
-                        error: Some(host_stopped_reading(links, write_allowance)),
+                        error: Some(with_wind_down(reason, wound_down)),
                     });
                 }
             }

@@ -165,14 +165,25 @@ impl<'a> LockstepNode<'a> {
     /// # Errors
     /// A frame that cannot be encoded.
     pub fn on_link_timeout(&mut self, missed_periods: u32) -> Result<[CanFrame; 2], MessageError> {
-        let (fault, detail) = self.node.on_link_timeout(missed_periods);
-        let k = self.node.next_period();
-        let period_s = self.node.plant().period_s();
-        Ok([
-            fault_frame(fault, detail, k)?,
-            status_frame(NodeState::Fault, k, period_s)?,
-        ])
+        let fault = self.node.on_link_timeout(missed_periods);
+        last_frames(self.node, fault)
     }
+}
+
+/// The node's last frames after a fault that ends the run (the watchdog, a link failure): the
+/// fault frame and Status(fault), in its next period.
+///
+/// # Errors
+/// [`MessageError`] if a frame cannot be encoded.
+pub fn last_frames(
+    node: &MirrorNode,
+    (fault, detail): (FaultKind, i32),
+) -> Result<[CanFrame; 2], MessageError> {
+    let k = node.next_period();
+    Ok([
+        fault_frame(fault, detail, k)?,
+        status_frame(NodeState::Fault, k, node.plant().period_s())?,
+    ])
 }
 
 /// The AngleReading frame of a stepped period (sequence counter = period mod 2^16).

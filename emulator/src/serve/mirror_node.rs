@@ -246,6 +246,13 @@ impl MirrorNode {
         )
     }
 
+    /// The node's link failed (bus-off, an OS error on the line): coil currents drop to zero,
+    /// as for the watchdog, and the fault to report is returned: a LinkTimeout with detail 0
+    /// (no period was missed; the link itself went away).
+    pub fn on_link_failure(&mut self) -> (FaultKind, i32) {
+        self.on_link_timeout(0)
+    }
+
     fn enter_fault(&mut self) {
         self.state = NodeState::Fault;
         self.command_a = ActuatorPair::default();

@@ -7,11 +7,13 @@
 //! - [`lockstep_node`]: the node's answers to the controller's frames in lockstep (no I/O).
 //! - [`lockstep`]: the controller's Step frame advances the plant one period.
 //! - [`realtime`]: this emulator is the clock master on the wall clock.
+//! - [`link_failure`]: how a link error ends either loop (coils zeroed, last frames, reason).
 //! - [`misbehaviour`]: deliberately non-conforming nodes for conformance tests (lockstep).
 //!
 //! The process speaks on stdout in JSON lines: `{"event":"ready",...}` once the links are
 //! open (with the paths of any pty it created), and `{"event":"summary",...}` at the end.
 
+pub mod link_failure;
 pub mod lockstep;
 pub mod lockstep_node;
 pub mod mirror_node;
@@ -94,6 +96,20 @@ pub enum ServeOutcome {
     Finished,
     /// The watchdog fired: currents were zeroed and a LinkTimeout fault sent.
     LinkTimeout,
+    /// A link failed (bus-off, an OS error on the line, the sensor's line failing): currents
+    /// were zeroed and the node's fault frame attempted where the link could still send.
+    LinkFailed,
+}
+
+impl ServeOutcome {
+    /// The process's exit status: 0 after a clean run, 3 after a link timeout or failure.
+    #[must_use]
+    pub fn exit_status(self) -> u8 {
+        match self {
+            ServeOutcome::Finished => 0,
+            ServeOutcome::LinkTimeout | ServeOutcome::LinkFailed => 3,
+        }
+    }
 }
 
 /// What ended a serve run (the summary's `ended_by`).
@@ -113,6 +129,11 @@ pub enum RunEnd {
     /// The host stopped reading the mirror's link: the node's frames could not be written
     /// within the watchdog's allowance (coils zeroed, as for the watchdog).
     HostStoppedReading,
+    /// SocketCAN: the CAN controller went bus-off ([`LinkError::BusOff`]; coils zeroed).
+    BusOff,
+    /// Any other link failure: an OS error on a line, a peer breaking the link's protocol, the
+    /// sensor's line failing (coils zeroed).
+    LinkFailed,
 }
 
 impl RunEnd {
@@ -124,6 +145,29 @@ impl RunEnd {
             LinkError::HangUp { .. } => Some(RunEnd::HangUp),
             LinkError::ChannelClosed { .. } => Some(RunEnd::HostClosedChannel),
             _ => None,
+        }
+    }
+
+    /// How any link error ends the run: the host's hang-up or closing of the channel as
+    /// [`RunEnd::from_link_error`] says, else [`RunEnd::BusOff`] or [`RunEnd::LinkFailed`].
+    #[must_use]
+    pub fn of_link_error(error: &LinkError) -> RunEnd {
+        RunEnd::from_link_error(error).unwrap_or(match error {
+            LinkError::BusOff { .. } => RunEnd::BusOff,
+            _ => RunEnd::LinkFailed,
+        })
+    }
+
+    /// The outcome of a run that ended so.
+    #[must_use]
+    pub fn outcome(self) -> ServeOutcome {
+        match self {
+            RunEnd::HostClosedChannel
+            | RunEnd::HangUp
+            | RunEnd::ControllerStatus
+            | RunEnd::Duration => ServeOutcome::Finished,
+            RunEnd::Watchdog | RunEnd::HostStoppedReading => ServeOutcome::LinkTimeout,
+            RunEnd::BusOff | RunEnd::LinkFailed => ServeOutcome::LinkFailed,
         }
     }
 }
@@ -138,6 +182,10 @@ pub struct ServeLinks {
 }
 
 /// Loads the scene, opens the links, prints the ready line, runs, prints the summary.
+///
+/// A link error ends the run as [`link_failure::end_on_link_error`] says: the host's hang-up
+/// finishes it, a failure (bus-off, an I/O error) zeroes the coils, attempts the node's fault
+/// frame and ends with [`ServeOutcome::LinkFailed`] and the reason in the summary.
 ///
 /// # Errors
 /// A scene or plant that cannot be built, a link that does not open, a plant error.
@@ -198,9 +246,13 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
             node =
                 node.with_sensor_faults(SensorFaultModel::new(faults.clone(), scene.seed, rate_hz));
         }
-        let mut report = match config.timing {
-            TimingMode::Lockstep => lockstep::run(&mut node, &mut links, config).await?,
-            TimingMode::Realtime => realtime::run(&mut node, &mut links, config).await?,
+        let served = match config.timing {
+            TimingMode::Lockstep => lockstep::run(&mut node, &mut links, config).await,
+            TimingMode::Realtime => realtime::run(&mut node, &mut links, config).await,
+        };
+        let mut report = match served {
+            Ok(report) => report,
+            Err(error) => link_failure::end_on_link_error(&mut node, &mut links, error).await?,
         };
         if let (Some(scheduling), Some(timing)) = (scheduling_report, report.timing.as_object_mut())
         {
@@ -275,6 +327,7 @@ fn link_summary(link: &CanLink) -> serde_json::Value {
         "frames_received": stats.frames_received,
         "slcan_malformed_lines": stats.slcan.malformed_lines,
         "slcan_refused_frames": stats.slcan.refused_frames,
+        "bus_error_frames": stats.bus_error_frames,
     })
 }
 

@@ -27,10 +27,13 @@ use std::time::{Duration, Instant};
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::link::LinkError;
 use scanhil_protocol::loop_timing::{MissedDeadline, PeriodRecorder};
-use scanhil_protocol::message::{Message, MessageError, NodeState};
+use scanhil_protocol::message::{Message, MessageError};
 
-use super::lockstep::{host_stopped_reading, linger, send_last_frames};
-use super::lockstep_node::{angle_frame, fault_frame, periods_per_heartbeat, status_frame};
+use super::link_failure::{end_on_link_error, wind_down, with_wind_down};
+use super::lockstep::host_stopped_reading;
+use super::lockstep_node::{
+    angle_frame, fault_frame, last_frames, periods_per_heartbeat, status_frame,
+};
 use super::mirror_node::{MirrorNode, NodeOutput};
 use super::{LoopReport, RunEnd, ServeConfig, ServeLinks, ServeOutcome};
 
@@ -45,8 +48,13 @@ const MAX_LISTED_MISSES: usize = 1 << 20;
 /// arrived). Before the clock starts the sensor answers the host's ILD commands as they come;
 /// during the run, at each period's samples.
 ///
+/// A link error once the clock runs ends the ticks as [`end_on_link_error`] says (a failure:
+/// coils zeroed, the node's fault frame attempted, the reason in the report), the timing so
+/// far kept.
+///
 /// # Errors
-/// A link error other than a hang-up, or a plant error.
+/// A link error before the clock starts, the host's hang-up included (`serve` ends the run on
+/// it the same way), a plant error, or a frame that cannot be encoded.
 pub async fn run(
     node: &mut MirrorNode,
     links: &mut ServeLinks,
@@ -76,27 +84,18 @@ pub async fn run(
     let mut unsent_since: Option<Instant> = None;
     // The clock starts when the host has opened the channel (SLCAN `O`; SocketCAN is open).
     while !links.fsm.channel_open() {
-        let received = tokio::select! {
-            received = links.fsm.recv_timeout(Duration::from_millis(10)) => received,
+        tokio::select! {
+            received = links.fsm.recv_timeout(Duration::from_millis(10)) => received?,
             error = links.sensor.answer_commands() => return Err(error),
         };
-        if let Err(error) = received {
-            return match RunEnd::from_link_error(&error) {
-                Some(ended_by) => Ok(LoopReport {
-                    outcome: ServeOutcome::Finished,
-                    ended_by,
-                    timing: serde_json::Value::Null,
-                    error: None,
-                }),
-                None => Err(error.into()),
-            };
-        }
     }
     let start = Instant::now();
     let mut last_tick: Option<Instant> = None;
     let mut outcome = ServeOutcome::Finished;
     let mut ended_by = RunEnd::Duration;
     let mut error = None;
+    // A link error that ended the ticks (the host's hang-up included).
+    let mut link_error: Option<anyhow::Error> = None;
     'ticks: loop {
         let k = node.next_period();
         if total_periods.is_some_and(|n| k >= n) {
@@ -114,13 +113,8 @@ pub async fn run(
         )
         .await;
         if let Err(err) = served {
-            match RunEnd::from_link_error(&err) {
-                Some(end) => {
-                    ended_by = end;
-                    break 'ticks;
-                }
-                None => return Err(err.into()),
-            }
+            link_error = Some(err.into());
+            break 'ticks;
         }
         let now = Instant::now();
         if let Some(previous) = last_tick {
@@ -142,30 +136,28 @@ pub async fn run(
         let not_reading =
             unsent_since.is_some_and(|since| now.duration_since(since) > silence_allowance);
         if silent_ticks || silent_wall || not_reading {
-            let (kind, detail) = node.on_link_timeout(config.watchdog_periods);
+            let fault = node.on_link_timeout(config.watchdog_periods);
             // A frozen host leaves the line full: the frames are queued (a send that times out
             // keeps what it has not written) and go out while `linger` drains the host.
-            let last_frames = [
-                fault_frame(kind, detail, k)?,
-                status_frame(NodeState::Fault, k, node.plant().period_s())?,
-            ];
-            send_last_frames(links, &last_frames).await?;
-            linger(links).await?;
-            outcome = ServeOutcome::LinkTimeout;
-            (ended_by, error) = if not_reading {
+            let frames = last_frames(node, fault)?;
+            let (end, reason) = if not_reading {
                 (
                     RunEnd::HostStoppedReading,
-                    Some(host_stopped_reading(links, silence_allowance)),
+                    host_stopped_reading(links, silence_allowance),
                 )
             } else {
                 (
                     RunEnd::Watchdog,
-                    Some(format!(
+                    format!(
                         "link timeout: no coil command for {} periods",
                         config.watchdog_periods
-                    )),
+                    ),
                 )
             };
+            let wound_down = wind_down(links, &frames, true).await;
+            outcome = ServeOutcome::LinkTimeout;
+            ended_by = end;
+            error = Some(with_wind_down(reason, wound_down));
             break;
         }
         unanswered_since.get_or_insert(now);
@@ -210,7 +202,11 @@ pub async fn run(
             anyhow::Ok(())
         };
         let sent = match tokio::time::timeout(SEND_ALLOWANCE, send).await {
-            Ok(result) => result.map(|()| true)?,
+            Ok(Ok(())) => true,
+            Ok(Err(err)) => {
+                link_error = Some(err);
+                break 'ticks;
+            }
             Err(_) => false,
         };
         if sent {
@@ -225,6 +221,10 @@ pub async fn run(
         } else {
             unsent_since.get_or_insert(now);
         }
+    }
+    if let Some(link_error) = link_error {
+        let report = end_on_link_error(node, links, link_error).await?;
+        (outcome, ended_by, error) = (report.outcome, report.ended_by, report.error);
     }
     let stats = recorder.stats(period.as_secs_f64());
     let stale = node.counters().stale_periods;

@@ -1,0 +1,83 @@
+//! How a link error ends a serve run, in lockstep and in real time alike.
+//!
+//! The host's hang-up or its closing of the SLCAN channel is the end of its session: the run
+//! finishes. Any other link error (SocketCAN bus-off, an OS error on a line, a peer breaking
+//! the link's protocol, the sensor's line failing) ends the run as the watchdog does: the
+//! node drops its coil currents to zero ([`MirrorNode::on_link_failure`]), its fault frame and
+//! Status(fault) are attempted where the link can still send (each waits at most
+//! [`LAST_FRAME_ALLOWANCE`](super::lockstep::LAST_FRAME_ALLOWANCE), so a bus-off controller or
+//! a dead line never holds the emulator), and the summary says why (`ended_by: bus_off` or
+//! `link_failed`, the error's text in `error`; exit 3).
+
+use scanhil_protocol::can::CanFrame;
+use scanhil_protocol::link::LinkError;
+
+use super::lockstep::{linger, send_last_frames};
+use super::lockstep_node::last_frames;
+use super::mirror_node::MirrorNode;
+use super::{LoopReport, RunEnd, ServeLinks, ServeOutcome};
+
+/// Ends the run on `error`. A link error (anywhere in its chain) gives the report: the host's
+/// hang-up or closing of the channel finishes the run; a failure zeroes the node's coils,
+/// attempts its last frames (and, on SLCAN, lingers so the host can read them) and reports
+/// the failure with the error's text. The report's `timing` is null.
+///
+/// # Errors
+/// `error` itself when it is no link error (a plant error, a frame that cannot be encoded).
+pub async fn end_on_link_error(
+    node: &mut MirrorNode,
+    links: &mut ServeLinks,
+    error: anyhow::Error,
+) -> anyhow::Result<LoopReport> {
+    let Some(link_error) = error.downcast_ref::<LinkError>() else {
+        return Err(error);
+    };
+    let ended_by = RunEnd::of_link_error(link_error);
+    if ended_by.outcome() == ServeOutcome::Finished {
+        return Ok(LoopReport {
+            outcome: ended_by.outcome(),
+            ended_by,
+            timing: serde_json::Value::Null,
+            error: None,
+        });
+    }
+    let reason = scanhil_protocol::error_text::chain_text(&*error);
+    let fault = node.on_link_failure();
+    let frames = last_frames(node, fault)?;
+    let lingers = links.fsm.slcan_bitrate().is_some();
+    let wound_down = wind_down(links, &frames, lingers).await;
+    Ok(LoopReport {
+        outcome: ended_by.outcome(),
+        ended_by,
+        timing: serde_json::Value::Null,
+        error: Some(with_wind_down(reason, wound_down)),
+    })
+}
+
+/// Sends the node's last frames ([`send_last_frames`]) and, with `lingers`, keeps the link
+/// open for the host to read them ([`linger`]). Never fails: the run is ending for a reason
+/// already known; a link error on the way ends the wind-down and is returned as text.
+pub async fn wind_down(
+    links: &mut ServeLinks,
+    frames: &[CanFrame],
+    lingers: bool,
+) -> Result<(), String> {
+    send_last_frames(links, frames)
+        .await
+        .map_err(|error| format!("the node's last frames were not sent: {error}"))?;
+    if lingers {
+        linger(links)
+            .await
+            .map_err(|error| format!("the link failed after the node's last frames: {error}"))?;
+    }
+    Ok(())
+}
+
+/// The reason a run ended, followed by what went wrong while winding down, if anything.
+#[must_use]
+pub fn with_wind_down(reason: String, wound_down: Result<(), String>) -> String {
+    match wound_down {
+        Ok(()) => reason,
+        Err(trouble) => format!("{reason}; {trouble}"),
+    }
+}
