@@ -153,12 +153,19 @@ pub fn feature_height(
         FeatureSelection::Inside { region } => Some(region),
         FeatureSelection::AboveThreshold { .. } => None,
     };
-    let plane_points: Vec<[f64; 3]> = points
-        .iter()
-        .copied()
-        .filter(|p| params.plane_region.contains(p[0], p[1]))
-        .filter(|p| explicit.is_none_or(|r| !r.contains(p[0], p[1])))
-        .collect();
+    // The plane is fitted to every point unless a region says otherwise (then to a copy of
+    // those points only): a frame's points are not copied for nothing.
+    let plane_points: std::borrow::Cow<'_, [[f64; 3]]> =
+        if params.plane_region == Region::All && explicit.is_none() {
+            std::borrow::Cow::Borrowed(points)
+        } else {
+            points
+                .iter()
+                .copied()
+                .filter(|p| params.plane_region.contains(p[0], p[1]))
+                .filter(|p| explicit.is_none_or(|r| !r.contains(p[0], p[1])))
+                .collect()
+        };
     let plane = fit_plane(&plane_points, &params.ransac)?;
     let heights: Vec<([f64; 3], f64)> = points
         .iter()

@@ -197,6 +197,7 @@ pub fn image_samples(
         .map(|&sample| options.calibration.apply(sample))
         .collect();
     let reconstruction = reconstruct(&calibrated, &scanner);
+    drop(calibrated);
     let xyz: Vec<[f64; 3]> = reconstruction
         .cloud
         .points

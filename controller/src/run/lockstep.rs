@@ -40,7 +40,11 @@ pub async fn run(
     // When each period's frames started going out: lockstep's arrival clock, kept only where
     // sensor samples are paired with the angles (it grows with the run).
     let keeps_arrivals = host.record().angles.is_some();
-    let mut period_starts = Vec::new();
+    let mut period_starts = Vec::with_capacity(if keeps_arrivals {
+        host.record().periods_planned as usize + 1
+    } else {
+        0
+    });
     loop {
         let received: Result<CanFrame, LoopError> = match host.next_action() {
             HostAction::Done => break,

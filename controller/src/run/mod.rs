@@ -238,6 +238,11 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         let progress = progress::Progress::new(periods, &scenario.name);
         let mut interrupt =
             interrupt::Interrupt::install().context("installing the signal handlers")?;
+        if let Some(rate_hz) = sensor_rate_hz {
+            // The planned samples and a margin (the sensor's clock runs on its own).
+            let samples = periods as f64 * period_s * rate_hz * 1.01 + 16.0;
+            links.sensor.reserve_samples(samples as usize);
+        }
         // Angle history only where sensor samples are paired with it: a mirror-only run's
         // record takes the same memory however long it runs.
         let empty_record = LoopRecord::new(period_s, periods)

@@ -179,6 +179,7 @@ pub fn write(
         progressive_steps: scenario.imaging.progressive_steps,
         ..ImagingOptions::default()
     };
+    let paired = samples.len();
     let imaging = if samples.iter().any(|s| s.z_meas_mm.is_some()) {
         let mut imaging = image_samples(&samples, &options).context("imaging the scan")?;
         imaging.score_progressive(truth.as_ref(), frame);
@@ -196,6 +197,8 @@ pub fn write(
     } else {
         None
     };
+    // The imaging holds what it needs: the paired samples go before the report is made.
+    drop(samples);
     let tracking = record.tracking.summary();
     failed.attempt(
         TRACKING_SVG,
@@ -261,7 +264,7 @@ pub fn write(
         "trajectory": figures,
         "samples": {
             "sensor_samples": counted.len(),
-            "paired": samples.len(),
+            "paired": paired,
             "in_the_lead_in": in_lead_in,
             "outside_the_angle_record": unpaired,
             "sensor_clock": clock,

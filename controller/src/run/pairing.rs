@@ -109,9 +109,16 @@ impl AngleTrack {
     /// An empty track for a loop with period `period_s`.
     #[must_use]
     pub fn new(period_s: f64) -> AngleTrack {
+        AngleTrack::with_capacity(period_s, 0)
+    }
+
+    /// An empty track with room for `readings` readings (a run's planned periods: no
+    /// reallocation, whose old and new buffers would both be held at once, on the way).
+    #[must_use]
+    pub fn with_capacity(period_s: f64, readings: usize) -> AngleTrack {
         AngleTrack {
             period_s,
-            readings_rad: Vec::new(),
+            readings_rad: Vec::with_capacity(readings),
         }
     }
 

@@ -111,6 +111,14 @@ impl SensorLink {
         }
     }
 
+    /// Makes room for `samples` samples up front (a run's planned count), so the log is not
+    /// reallocated, old and new buffer held at once, as it grows.
+    pub fn reserve_samples(&mut self, samples: usize) {
+        if let SensorLink::Ild(stream) = self {
+            stream.log.samples.reserve(samples);
+        }
+    }
+
     /// Records every received byte into `out` (a raw capture `scanhil decode --format ild`
     /// reads); nothing when the sensor is elsewhere.
     pub fn record_to(&mut self, out: impl std::io::Write + Send + 'static) {
