@@ -196,15 +196,26 @@ impl IldPort {
 }
 
 impl SensorPort {
-    /// Sends the samples of one period, in order, with one write. On the ILD line, first
-    /// answers the command lines that have arrived, then sends each sample's output cycle as
-    /// the settings make it (none while the output is off), never waiting: while the host has
-    /// not read the previous period's bytes, this period's cycles are dropped whole (counted).
-    /// On CAN the Distance frames go out with the frames queued on `fsm` before them.
+    /// Sends the samples of one period, in order, with one write: [`SensorPort::queue`] then
+    /// [`SensorPort::flush`].
     ///
     /// # Errors
     /// Link errors.
     pub async fn emit(&mut self, samples: &[IldSample], fsm: &mut CanLink) -> anyhow::Result<()> {
+        self.queue(samples, fsm).await?;
+        self.flush(fsm).await
+    }
+
+    /// Queues the samples of one period, in order, without writing them. On the ILD line,
+    /// first answers the command lines that have arrived, then queues each sample's output
+    /// cycle as the settings make it (none while the output is off), never waiting: while the
+    /// host has not read the previous period's bytes, this period's cycles are dropped whole
+    /// (counted). On CAN the Distance frames are queued on `fsm` behind the frames queued
+    /// before them.
+    ///
+    /// # Errors
+    /// Link errors.
+    pub async fn queue(&mut self, samples: &[IldSample], fsm: &mut CanLink) -> anyhow::Result<()> {
         self.poll_commands()?;
         match self {
             SensorPort::Off => {}
@@ -218,7 +229,6 @@ impl SensorPort {
                         port.clock.count(sample, line_free);
                     }
                 }
-                port.link.try_flush()?;
             }
             SensorPort::Can(clock) => {
                 for sample in samples {
@@ -233,8 +243,23 @@ impl SensorPort {
                     };
                     fsm.queue(&Message::Distance(distance).encode()?).await?;
                 }
-                fsm.flush().await?;
             }
+        }
+        Ok(())
+    }
+
+    /// Writes what [`SensorPort::queue`] queued: on the ILD line as far as the line takes it
+    /// now (never waiting), on CAN with the frames queued on `fsm`.
+    ///
+    /// # Errors
+    /// Link errors.
+    pub async fn flush(&mut self, fsm: &mut CanLink) -> anyhow::Result<()> {
+        match self {
+            SensorPort::Off => {}
+            SensorPort::Ild(port) => {
+                port.link.try_flush()?;
+            }
+            SensorPort::Can(_) => fsm.flush().await?,
         }
         Ok(())
     }
