@@ -1,5 +1,5 @@
 //! Recording what crosses a link: CAN frames as candump `-L` lines (the protocol's
-//! [`push_line`](crate::candump::push_line)), ILD bytes raw.
+//! [`crate::candump::push_line`]), ILD bytes raw.
 //!
 //! A capture collects what it records in memory and writes it with one `write` when flushed:
 //! the links flush their capture before they wait for input ([`CanLink`](super::CanLink),
