@@ -282,13 +282,32 @@ pub fn fd_len_for_dlc(dlc: u8) -> usize {
 /// Bytes as upper-case hex with no separators (`DEADBEEF`).
 #[must_use]
 pub fn hex_upper(bytes: &[u8]) -> String {
-    use fmt::Write;
-    let mut s = String::with_capacity(bytes.len() * 2);
-    for b in bytes {
-        let _ = write!(s, "{b:02X}");
-    }
-    s
+    let mut text = Vec::with_capacity(bytes.len() * 2);
+    push_hex_upper(&mut text, bytes);
+    String::from_utf8(text).unwrap_or_default()
 }
+
+/// Appends `bytes` to `out` as upper-case hex with no separators, without the formatting
+/// machinery (recordings write several frames a period).
+pub fn push_hex_upper(out: &mut Vec<u8>, bytes: &[u8]) {
+    for &byte in bytes {
+        out.push(HEX_UPPER[usize::from(byte >> 4)]);
+        out.push(HEX_UPPER[usize::from(byte & 0x0F)]);
+    }
+}
+
+/// Appends `value` to `out` as upper-case hex, zero-padded to at least `width` digits (as
+/// `{value:0width$X}` formats it).
+pub fn push_hex_number(out: &mut Vec<u8>, value: u32, width: usize) {
+    let digits = (u32::BITS - value.leading_zeros()).div_ceil(4).max(1) as usize;
+    out.extend(std::iter::repeat_n(b'0', width.saturating_sub(digits)));
+    for digit in (0..digits).rev() {
+        out.push(HEX_UPPER[((value >> (4 * digit)) & 0x0F) as usize]);
+    }
+}
+
+/// The upper-case hex digits.
+const HEX_UPPER: &[u8; 16] = b"0123456789ABCDEF";
 
 /// Parses an even-length hex string (either case) into bytes; `None` on any other input.
 #[must_use]
@@ -365,5 +384,17 @@ mod tests {
         assert_eq!(parse_hex_u32(b"1FFFFFFF"), Some(0x1FFF_FFFF));
         assert_eq!(parse_hex_u32(b"123456789"), None);
         assert_eq!(hex_upper(&[0xde, 0x01]), "DE01");
+        for (value, width) in [
+            (0, 3),
+            (0x7FF, 3),
+            (0x21, 3),
+            (0x1ABC_DEF0, 8),
+            (0x5, 8),
+            (0x1234, 1),
+        ] {
+            let mut out = Vec::new();
+            push_hex_number(&mut out, value, width);
+            assert_eq!(String::from_utf8(out).unwrap(), format!("{value:0width$X}"));
+        }
     }
 }

@@ -12,7 +12,9 @@
 
 use std::fmt;
 
-use crate::can::{CanFrame, CanId, FrameError, FrameFormat, hex_digit, hex_upper, parse_hex};
+use crate::can::{
+    CanFrame, CanId, FrameError, FrameFormat, hex_digit, parse_hex, push_hex_number, push_hex_upper,
+};
 
 /// FD flags digit: bit-rate switch.
 const FD_FLAG_BRS: u8 = 0x1;
@@ -62,27 +64,65 @@ pub struct LogEntry {
 }
 
 impl fmt::Display for LogEntry {
-    /// The `-L` line, without a line end; the timestamp truncated to microseconds.
+    /// The `-L` line, without a line end; the timestamp truncated to microseconds
+    /// ([`push_line`]).
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(
-            f,
-            "({}.{:06}) {} {}",
-            self.timestamp.secs,
-            self.timestamp.nanos / 1000,
-            self.interface,
-            self.frame.id()
-        )?;
-        let frame = &self.frame;
-        match frame.format() {
-            FrameFormat::Classical => write!(f, "#{}", hex_upper(frame.data())),
-            FrameFormat::Remote if frame.dlc() == 0 => write!(f, "#R"),
-            FrameFormat::Remote => write!(f, "#R{}", frame.dlc()),
-            FrameFormat::Fd { brs, esi } => {
-                let flags = (u8::from(brs) * FD_FLAG_BRS) | (u8::from(esi) * FD_FLAG_ESI);
-                write!(f, "##{flags:X}{}", hex_upper(frame.data()))
+        let mut line = Vec::with_capacity(64);
+        push_line(&mut line, self.timestamp, &self.interface, &self.frame);
+        f.write_str(&String::from_utf8_lossy(&line))
+    }
+}
+
+/// Appends the `-L` line of `frame` on `interface` at `timestamp` to `out`, without a line
+/// end, the timestamp truncated to microseconds: what [`LogEntry`] displays, without building
+/// an entry or going through the formatting machinery (a capture writes three lines a period).
+pub fn push_line(out: &mut Vec<u8>, timestamp: Timestamp, interface: &str, frame: &CanFrame) {
+    out.push(b'(');
+    push_decimal(out, timestamp.secs, 1);
+    out.push(b'.');
+    push_decimal(out, u64::from(timestamp.nanos / 1000), 6);
+    out.extend_from_slice(b") ");
+    out.extend_from_slice(interface.as_bytes());
+    out.push(b' ');
+    match frame.id() {
+        CanId::Standard(id) => push_hex_number(out, u32::from(id.as_raw()), 3),
+        CanId::Extended(id) => push_hex_number(out, id.as_raw(), 8),
+    }
+    match frame.format() {
+        FrameFormat::Classical => {
+            out.push(b'#');
+            push_hex_upper(out, frame.data());
+        }
+        FrameFormat::Remote => {
+            out.extend_from_slice(b"#R");
+            if frame.dlc() != 0 {
+                push_decimal(out, u64::from(frame.dlc()), 1);
             }
         }
+        FrameFormat::Fd { brs, esi } => {
+            let flags = (u8::from(brs) * FD_FLAG_BRS) | (u8::from(esi) * FD_FLAG_ESI);
+            out.extend_from_slice(b"##");
+            push_hex_number(out, u32::from(flags), 1);
+            push_hex_upper(out, frame.data());
+        }
     }
+}
+
+/// Appends `value` in decimal, zero-padded to at least `width` digits.
+fn push_decimal(out: &mut Vec<u8>, value: u64, width: usize) {
+    let mut digits = [0u8; 20];
+    let mut rest = value;
+    let mut len = 0;
+    loop {
+        digits[len] = b'0' + (rest % 10) as u8;
+        len += 1;
+        rest /= 10;
+        if rest == 0 {
+            break;
+        }
+    }
+    out.extend(std::iter::repeat_n(b'0', width.saturating_sub(len)));
+    out.extend(digits[..len].iter().rev());
 }
 
 /// What was wrong with a log line.

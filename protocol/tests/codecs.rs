@@ -2,7 +2,7 @@
 //! resynchronisation after dropped and flipped bytes.
 
 use proptest::prelude::*;
-use scanhil_protocol::can::{CanFrame, CanId, FD_LENGTHS};
+use scanhil_protocol::can::{CanFrame, CanId, FD_LENGTHS, FrameFormat};
 use scanhil_protocol::candump::{self, LogEntry, Timestamp};
 use scanhil_protocol::ild::command::{AddValue, IldReply, ReplyCode};
 use scanhil_protocol::ild::{IldCommand, IldDecoder, IldReplyParser, IldValue, encode_cycle};
@@ -197,18 +197,39 @@ proptest! {
     }
 
     #[test]
-    fn candump_round_trips(
+    fn candump_lines_are_std_formatted_and_round_trip(
         frame in arb_frame(true),
         secs in 0u64..4_000_000_000,
         micros in 0u32..1_000_000,
+        below_a_micro_ns in 0u32..1000,
         interface in "[a-z][a-z0-9]{0,8}",
     ) {
+        // The line, written without std formatting, is what std formatting writes...
+        let mut line = Vec::new();
+        let nanos = micros * 1000 + below_a_micro_ns;
+        candump::push_line(&mut line, Timestamp { secs, nanos }, &interface, &frame);
+        let id = match frame.id() {
+            CanId::Standard(id) => format!("{:03X}", id.as_raw()),
+            CanId::Extended(id) => format!("{:08X}", id.as_raw()),
+        };
+        let hex: String = frame.data().iter().map(|b| format!("{b:02X}")).collect();
+        let body = match frame.format() {
+            FrameFormat::Classical => format!("#{hex}"),
+            FrameFormat::Remote if frame.dlc() == 0 => "#R".to_owned(),
+            FrameFormat::Remote => format!("#R{}", frame.dlc()),
+            FrameFormat::Fd { brs, esi } => {
+                format!("##{:X}{hex}", u8::from(brs) | (u8::from(esi) << 1))
+            }
+        };
+        let line = String::from_utf8(line).unwrap();
+        prop_assert_eq!(&line, &format!("({secs}.{micros:06}) {interface} {id}{body}"));
+        // ... and reads back as the entry (its timestamp truncated to the microsecond).
         let entry = LogEntry {
             timestamp: Timestamp { secs, nanos: micros * 1000 },
             interface,
             frame,
         };
-        let line = entry.to_string();
+        prop_assert_eq!(&entry.to_string(), &line);
         prop_assert_eq!(candump::parse_line(&line), Ok(entry));
     }
 

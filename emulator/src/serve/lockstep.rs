@@ -117,16 +117,20 @@ pub async fn run(
                 }
                 // The period's frames go out together (one write per link), within the
                 // silence the node accepts: a host that stops reading never blocks the node.
+                // The mirror's frames go first, so the host wakes once, for the reading it
+                // waits on, and finds the sensor's cycles there when it looks (written first,
+                // they woke it once more a period).
                 let send = async {
                     for send in answer.sends {
                         match send {
                             NodeSend::Frame(frame) => links.fsm.queue(&frame).await?,
                             NodeSend::Samples(samples) => {
-                                links.sensor.emit(&samples, &mut links.fsm).await?;
+                                links.sensor.queue(&samples, &mut links.fsm).await?;
                             }
                         }
                     }
                     links.fsm.flush().await?;
+                    links.sensor.flush(&mut links.fsm).await?;
                     anyhow::Ok(())
                 };
                 if let Ok(sent) = tokio::time::timeout(write_allowance, send).await {

@@ -8,11 +8,11 @@
 //! estimates it instead.
 //!
 //! On the ILD line the port also answers the host's ASCII commands
-//! ([`super::sensor_commands`]): before the run (the timing loops wait on
-//! [`SensorPort::answer_commands`] beside the mirror's link) and between streamed cycles
-//! ([`SensorPort::emit`] first answers what has arrived). Answering never blocks the mirror
-//! loop: replies are written as far as the line takes them now, the rest goes out with the
-//! next cycle. What the commands set (output on/off, the counter, the laser) shapes the cycles
+//! ([`super::sensor_commands`]): before the run and between periods (the timing loops wait on
+//! [`SensorPort::answer_commands`] beside the mirror's link) and, in real time, between
+//! streamed cycles ([`SensorPort::emit`] first answers what has arrived). Answering never
+//! blocks the mirror loop: replies are written as far as the line takes them now, the rest
+//! goes out with the next cycle. What the commands set (output on/off, the counter, the laser) shapes the cycles
 //! sent. Distance frames on CAN have no command line.
 //!
 //! The ILD stream never waits for its reader, as a real RS422 sensor streams whether anyone
@@ -196,16 +196,30 @@ impl IldPort {
 }
 
 impl SensorPort {
-    /// Sends the samples of one period, in order, with one write. On the ILD line, first
-    /// answers the command lines that have arrived, then sends each sample's output cycle as
-    /// the settings make it (none while the output is off), never waiting: while the host has
-    /// not read the previous period's bytes, this period's cycles are dropped whole (counted).
-    /// On CAN the Distance frames go out with the frames queued on `fsm` before them.
+    /// Sends the samples of one period, in order, with one write: first answers the command
+    /// lines that have arrived ([`SensorPort::poll_commands`]), then [`SensorPort::queue`] and
+    /// [`SensorPort::flush`]. For a loop that does not wait on [`SensorPort::answer_commands`]
+    /// between periods (real time).
     ///
     /// # Errors
     /// Link errors.
     pub async fn emit(&mut self, samples: &[IldSample], fsm: &mut CanLink) -> anyhow::Result<()> {
         self.poll_commands()?;
+        self.queue(samples, fsm).await?;
+        self.flush(fsm).await
+    }
+
+    /// Queues the samples of one period, in order, without writing them and without looking
+    /// for commands (a loop that waits on [`SensorPort::answer_commands`] between periods
+    /// answers them there; lockstep does, and saves a read per period). On the ILD line each
+    /// sample's output cycle is queued as the settings make it (none while the output is
+    /// off), never waiting: while the host has not read the previous period's bytes, this
+    /// period's cycles are dropped whole (counted). On CAN the Distance frames are queued on
+    /// `fsm` behind the frames queued before them.
+    ///
+    /// # Errors
+    /// Link errors.
+    pub async fn queue(&mut self, samples: &[IldSample], fsm: &mut CanLink) -> anyhow::Result<()> {
         match self {
             SensorPort::Off => {}
             SensorPort::Ild(port) => {
@@ -218,7 +232,6 @@ impl SensorPort {
                         port.clock.count(sample, line_free);
                     }
                 }
-                port.link.try_flush()?;
             }
             SensorPort::Can(clock) => {
                 for sample in samples {
@@ -233,8 +246,23 @@ impl SensorPort {
                     };
                     fsm.queue(&Message::Distance(distance).encode()?).await?;
                 }
-                fsm.flush().await?;
             }
+        }
+        Ok(())
+    }
+
+    /// Writes what [`SensorPort::queue`] queued: on the ILD line as far as the line takes it
+    /// now (never waiting), on CAN with the frames queued on `fsm`.
+    ///
+    /// # Errors
+    /// Link errors.
+    pub async fn flush(&mut self, fsm: &mut CanLink) -> anyhow::Result<()> {
+        match self {
+            SensorPort::Off => {}
+            SensorPort::Ild(port) => {
+                port.link.try_flush()?;
+            }
+            SensorPort::Can(_) => fsm.flush().await?,
         }
         Ok(())
     }

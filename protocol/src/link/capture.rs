@@ -1,5 +1,5 @@
 //! Recording what crosses a link: CAN frames as candump `-L` lines (the protocol's
-//! [`LogEntry`] writer), ILD bytes raw.
+//! [`crate::candump::push_line`]), ILD bytes raw.
 //!
 //! A capture collects what it records in memory and writes it with one `write` when flushed:
 //! the links flush their capture before they wait for input ([`CanLink`](super::CanLink),
@@ -19,7 +19,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, SystemTime, UNIX_EPOCH};
 
 use crate::can::CanFrame;
-use crate::candump::{LogEntry, Timestamp};
+use crate::candump::{Timestamp, push_line};
 
 /// A capture writes on its own once it holds this many bytes (a run that never waits for
 /// input, like the in-process loop, still streams its recording).
@@ -143,12 +143,13 @@ impl CanCapture {
     /// # Errors
     /// The writer's error, when this record made the capture write.
     pub fn record(&mut self, frame: &CanFrame) -> io::Result<()> {
-        let entry = LogEntry {
-            timestamp: self.clock.timestamp(),
-            interface: self.interface.clone(),
-            frame: *frame,
-        };
-        writeln!(self.out.bytes, "{entry}")?;
+        push_line(
+            &mut self.out.bytes,
+            self.clock.timestamp(),
+            &self.interface,
+            frame,
+        );
+        self.out.bytes.push(b'\n');
         self.out.recorded()
     }
 
