@@ -28,19 +28,27 @@ fn period(k: u32) -> Vec<Message> {
     ]
 }
 
+/// Sends lockstep period `k` and waits up to `wait` for its AngleReading; whether it came.
+fn step(host: &mut SlcanHost, k: u32, wait: Duration) -> bool {
+    for message in period(k) {
+        host.send(&message);
+    }
+    loop {
+        match host.recv(wait) {
+            Some(Message::AngleReading(reading)) if reading.seq == k as u16 => return true,
+            Some(_) => {}
+            None => return false,
+        }
+    }
+}
+
 /// Runs lockstep periods `0..n` and waits for each AngleReading.
 fn exchange(host: &mut SlcanHost, periods: std::ops::Range<u32>) {
     for k in periods {
-        for message in period(k) {
-            host.send(&message);
-        }
-        loop {
-            match host.recv(Duration::from_secs(10)) {
-                Some(Message::AngleReading(reading)) if reading.seq == k as u16 => break,
-                Some(_) => {}
-                None => panic!("no AngleReading for period {k}"),
-            }
-        }
+        assert!(
+            step(host, k, Duration::from_secs(10)),
+            "no AngleReading for period {k}"
+        );
     }
 }
 
@@ -100,32 +108,97 @@ fn a_real_time_host_that_stops_reading_gets_zero_coils_and_a_reason() {
     a_host_that_stops_reading("realtime", "20000", "0.05");
 }
 
-#[test]
-fn a_sensor_line_nobody_reads_never_stalls_the_mirror() {
-    // The sensor at 20 kHz sends one 6-byte cycle per period: a pty's buffer (a few kB) fills
-    // within a thousand periods, and a blocking sensor write would stop the mirror there.
-    let periods = 8000u32;
-    let emulator = ServedEmulator::start(&[
+/// The emulator serving the protocol-only scene's mirror and its sensor on an ILD pty, with
+/// `options`.
+fn serve_with_a_sensor_line(options: &[&str]) -> ServedEmulator {
+    let scene = fixture("scenes/protocol-only.json");
+    let mut args = vec![
         "--scene",
-        &fixture("scenes/protocol-only.json"),
+        &scene,
         "--fsm",
         "slcan:pty",
         "--sensor",
         "ild:pty",
+    ];
+    args.extend_from_slice(options);
+    ServedEmulator::start(&args)
+}
+
+#[test]
+fn a_lockstep_sensor_line_nobody_reads_ends_the_run_with_zero_coils_and_a_reason() {
+    // Lockstep loses no sensor cycle: each period's 6-byte cycle waits for the host to read
+    // the line. A pty's buffer fills within some thousands of periods; from then on the node
+    // waits its watchdog's allowance (20 x 50 ms = 1 s) and ends as for an unread mirror link.
+    let emulator = serve_with_a_sensor_line(&[
+        "--watchdog-periods",
+        "20",
+        "--lockstep-answer-allowance-s",
+        "0.05",
     ]);
+    let sensor_line = emulator.ready["sensor"]
+        .as_str()
+        .expect("the sensor's line")
+        .to_owned();
     let mut host = SlcanHost::open(&emulator.path("fsm"));
-    exchange(&mut host, 0..periods);
-    host.write_line("C");
+    // Far more periods than the line holds (about 3500): a node that drops cycles instead
+    // runs them all.
+    let answered = (0..20_000u32)
+        .take_while(|&k| step(&mut host, k, Duration::from_secs(5)))
+        .count();
+    let (code, summary) = emulator.finish(Duration::from_secs(20));
+    assert_eq!(code, Some(3), "exit status 3: {summary}");
+    assert_eq!(summary["ended_by"], "host_stopped_reading", "{summary}");
+    assert_eq!(summary["held_coil_currents_a"]["a"], 0.0, "{summary}");
+    assert_eq!(summary["held_coil_currents_a"]["b"], 0.0, "{summary}");
+    assert!(
+        summary["error"]
+            .as_str()
+            .is_some_and(|e| e.contains(&format!("stopped reading {sensor_line}"))),
+        "the summary names the sensor's line: {summary}"
+    );
+    let sensor = &summary["sensor"];
+    assert_eq!(sensor["dropped_cycles"], 0, "nothing dropped: {sensor}");
+    assert!(
+        (100..20_000).contains(&answered),
+        "the run went on while the line had room, then stopped: {answered} periods"
+    );
+}
+
+#[test]
+fn a_real_time_sensor_line_nobody_reads_never_stalls_the_mirror() {
+    // Real time streams as a real sensor does: cycles the full line cannot take are dropped
+    // (counted), and the mirror keeps its 20 kHz to the end of the run.
+    let emulator = serve_with_a_sensor_line(&[
+        "--timing",
+        "realtime",
+        "--duration-s",
+        "1",
+        "--watchdog-periods",
+        "1000000",
+    ]);
+    let host = SlcanHost::open(&emulator.path("fsm"));
+    // The mirror's line is read to the end of the run; the sensor's never.
+    let mut readings = 0u64;
+    while let Some(message) = host.recv(Duration::from_secs(3)) {
+        if matches!(message, Message::AngleReading(_)) {
+            readings += 1;
+        }
+    }
     let (code, summary) = emulator.finish(Duration::from_secs(20));
     assert_eq!(code, Some(0), "{summary}");
-    assert_eq!(summary["node"]["periods"], periods, "{summary}");
+    assert_eq!(summary["ended_by"], "duration", "{summary}");
+    let periods = summary["node"]["periods"].as_u64().expect("periods");
+    assert!(
+        readings > 1000,
+        "the mirror kept answering: {readings} readings"
+    );
     let sensor = &summary["sensor"];
     let sent = sensor["samples"].as_u64().expect("samples sent");
     let dropped = sensor["dropped_cycles"].as_u64().expect("cycles dropped");
     assert!(dropped > 0, "the full line dropped cycles: {sensor}");
     assert_eq!(
         sent + dropped,
-        u64::from(periods),
+        periods,
         "one sample per period, sent or dropped: {sensor}"
     );
 }

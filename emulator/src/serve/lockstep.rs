@@ -120,6 +120,9 @@ pub async fn run(
                 // The mirror's frames go first, so the host wakes once, for the reading it
                 // waits on, and finds the sensor's cycles there when it looks (written first,
                 // they woke it once more a period).
+                // The sensor's line is written whole (lossless), so it is bounded here too;
+                // `sensor_turn` says which line a timeout found unread.
+                let sensor_turn = std::cell::Cell::new(false);
                 let send = async {
                     for send in answer.sends {
                         match send {
@@ -130,6 +133,7 @@ pub async fn run(
                         }
                     }
                     links.fsm.flush().await?;
+                    sensor_turn.set(true);
                     links.sensor.flush(&mut links.fsm).await?;
                     anyhow::Ok(())
                 };
@@ -137,7 +141,12 @@ pub async fn run(
                     sent?;
                 } else {
                     let frames = node.on_link_timeout(config.watchdog_periods)?;
-                    let reason = host_stopped_reading(links, write_allowance);
+                    let unread = if sensor_turn.get() {
+                        links.sensor.name()
+                    } else {
+                        links.fsm.name()
+                    };
+                    let reason = host_stopped_reading(unread, write_allowance);
                     let wound_down = wind_down(links, &frames, true).await;
                     return Ok(LoopReport {
                         outcome: ServeOutcome::LinkTimeout,
@@ -205,10 +214,9 @@ pub async fn send_last_frames(links: &mut ServeLinks, frames: &[CanFrame]) -> an
 
 /// The reason given when the host left the node's frames unread for `waited`.
 #[must_use]
-pub fn host_stopped_reading(links: &ServeLinks, waited: Duration) -> String {
+pub fn host_stopped_reading(line: &str, waited: Duration) -> String {
     format!(
-        "the host stopped reading {}: the node's frames could not be written for {waited:?}",
-        links.fsm.name()
+        "the host stopped reading {line}: the node's frames could not be written for {waited:?}"
     )
 }
 

@@ -237,6 +237,12 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
         let fsm = open_fsm(fsm_uri).await?;
         ready["fsm"] = fsm.name().into();
         let (sensor, sensor_name) = SensorPort::open(config.sensor.as_deref(), &scene)?;
+        // Lockstep loses no sensor cycle (the host gives time); real time streams as a real
+        // sensor does, dropping what the line cannot take.
+        let sensor = match config.timing {
+            TimingMode::Lockstep => sensor.lossless(),
+            TimingMode::Realtime => sensor,
+        };
         ready["sensor"] = sensor_name.into();
         println_flushed(&ready)?;
         let mut links = ServeLinks { fsm, sensor };

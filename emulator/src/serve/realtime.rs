@@ -143,7 +143,7 @@ pub async fn run(
             let (end, reason) = if not_reading {
                 (
                     RunEnd::HostStoppedReading,
-                    host_stopped_reading(links, silence_allowance),
+                    host_stopped_reading(links.fsm.name(), silence_allowance),
                 )
             } else {
                 (

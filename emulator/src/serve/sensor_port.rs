@@ -15,13 +15,19 @@
 //! goes out with the next cycle. What the commands set (output on/off, the counter, the laser) shapes the cycles
 //! sent. Distance frames on CAN have no command line.
 //!
-//! The ILD stream never waits for its reader, as a real RS422 sensor streams whether anyone
-//! listens: a cycle the line cannot take now (the host is not reading, or not keeping up) is
-//! dropped whole and counted (`dropped_cycles` in the summary; the measured-value counter
-//! still advances, so the host sees the gap). So a sensor line nobody reads never stalls the
-//! mirror, and at most one cycle and
+//! In real time the ILD stream never waits for its reader, as a real RS422 sensor streams
+//! whether anyone listens: a cycle the line cannot take now (the host is not reading, or not
+//! keeping up) is dropped whole and counted (`dropped_cycles` in the summary; the
+//! measured-value counter still advances, so the host sees the gap). So a sensor line nobody
+//! reads never stalls the mirror, and at most one cycle and
 //! [`MAX_QUEUED_REPLY_BYTES`](scanhil_protocol::link::ild::MAX_QUEUED_REPLY_BYTES) of replies
 //! wait in memory.
+//!
+//! In lockstep ([`SensorPort::lossless`]) time is the host's to give, so nothing is dropped:
+//! each period's cycles are written whole, waiting while the host has not read the line yet
+//! (a loaded host may leave it unread for a while). The lockstep loop bounds that wait by the
+//! watchdog's allowance: a host that stops reading the sensor's line then ends the run as one
+//! that stops reading the mirror's does (coils zeroed, `ended_by: host_stopped_reading`).
 
 use scanhil_protocol::link::ild::{IldLink, IldRequest};
 use scanhil_protocol::link::role::Role;
@@ -52,6 +58,8 @@ pub struct IldPort {
     commands: CommandCounts,
     /// The host hung up the line: no more commands to read (a cycle sent then still fails).
     host_gone: bool,
+    /// Lockstep: every cycle is written, waiting for the line ([`SensorPort::lossless`]).
+    lossless: bool,
 }
 
 /// The host's commands the sensor answered, for the summary line.
@@ -131,8 +139,28 @@ impl SensorPort {
             settings,
             commands: CommandCounts::default(),
             host_gone: false,
+            lossless: false,
         };
         Ok((SensorPort::Ild(Box::new(port)), name))
+    }
+
+    /// The same port delivering every cycle, waiting for the line (lockstep), instead of
+    /// dropping the cycles the line cannot take now (real time, as a real sensor streams).
+    #[must_use]
+    pub fn lossless(mut self) -> SensorPort {
+        if let SensorPort::Ild(port) = &mut self {
+            port.lossless = true;
+        }
+        self
+    }
+
+    /// The sensor line's name (empty when there is none; the mirror's link for CAN).
+    #[must_use]
+    pub fn name(&self) -> &str {
+        match self {
+            SensorPort::Ild(port) => port.link.name(),
+            SensorPort::Off | SensorPort::Can(_) => "",
+        }
     }
 
     /// Waits for the host's command lines and answers each; returns only on a link error
@@ -213,9 +241,9 @@ impl SensorPort {
     /// for commands (a loop that waits on [`SensorPort::answer_commands`] between periods
     /// answers them there; lockstep does, and saves a read per period). On the ILD line each
     /// sample's output cycle is queued as the settings make it (none while the output is
-    /// off), never waiting: while the host has not read the previous period's bytes, this
-    /// period's cycles are dropped whole (counted). On CAN the Distance frames are queued on
-    /// `fsm` behind the frames queued before them.
+    /// off), never waiting: unless [`lossless`](SensorPort::lossless), while the host has not
+    /// read the previous period's bytes, this period's cycles are dropped whole (counted). On
+    /// CAN the Distance frames are queued on `fsm` behind the frames queued before them.
     ///
     /// # Errors
     /// Link errors.
@@ -223,7 +251,7 @@ impl SensorPort {
         match self {
             SensorPort::Off => {}
             SensorPort::Ild(port) => {
-                let line_free = port.link.try_flush()?;
+                let line_free = port.lossless || port.link.try_flush()?;
                 for sample in samples {
                     if let Some(values) = port.settings.cycle(sample) {
                         if line_free {
@@ -252,13 +280,15 @@ impl SensorPort {
     }
 
     /// Writes what [`SensorPort::queue`] queued: on the ILD line as far as the line takes it
-    /// now (never waiting), on CAN with the frames queued on `fsm`.
+    /// now (never waiting) or, [`lossless`](SensorPort::lossless), all of it (waiting while
+    /// the line is full: the caller bounds the wait); on CAN with the frames queued on `fsm`.
     ///
     /// # Errors
     /// Link errors.
     pub async fn flush(&mut self, fsm: &mut CanLink) -> anyhow::Result<()> {
         match self {
             SensorPort::Off => {}
+            SensorPort::Ild(port) if port.lossless => port.link.flush().await?,
             SensorPort::Ild(port) => {
                 port.link.try_flush()?;
             }
