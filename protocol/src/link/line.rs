@@ -2,9 +2,6 @@
 //! in this process): what SLCAN and the ILD stream run on.
 //!
 //! The line is non-blocking under tokio's [`AsyncFd`], so a timed-out read loses nothing.
-//! It is registered for reading only and written without waiting on readiness first: a
-//! lockstep loop is woken by what it reads, never by the peer having read (see
-//! [`SerialLine::write_some`]).
 //! EOF and `EIO` (the other end closed, the adapter was unplugged) are reported as
 //! [`LinkError::HangUp`].
 
@@ -15,7 +12,6 @@ use std::os::unix::fs::OpenOptionsExt;
 use std::path::Path;
 
 use nix::fcntl::{Flock, FlockArg, OFlag};
-use tokio::io::Interest;
 use tokio::io::unix::AsyncFd;
 
 use super::error::{LinkError, LinkResult};
@@ -110,7 +106,7 @@ impl SerialLine {
             .map_err(|e| open_error(e.into()))?;
         Ok(SerialLine {
             name: name.to_owned(),
-            fd: register(file, Interest::READABLE).map_err(open_error)?,
+            fd: register(file).map_err(open_error)?,
             _lock: lock,
             slave_keepalive,
             written: std::sync::atomic::AtomicU64::new(0),
@@ -190,53 +186,28 @@ impl SerialLine {
     /// Writes some of `bytes` (at least one), waiting while the line's buffer is full;
     /// returns how many were written. Cancel-safe: nothing is written unless it returns.
     ///
-    /// The write is tried first and readiness is waited on only when the line is full, so a
-    /// line with room costs one `write` and no wake-up: the line is registered with the
-    /// reactor for reading only (see `wait_writable` in the source).
-    ///
     /// # Errors
     /// [`LinkError::HangUp`] on `EIO`; [`LinkError::Io`] for other OS errors.
     pub async fn write_some(&self, bytes: &[u8]) -> LinkResult<usize> {
-        let mut peer_gone = false;
         loop {
-            match self.fd.get_ref().write(bytes) {
-                Ok(n) => {
+            let mut guard = self.fd.writable().await.map_err(|e| self.io("write", e))?;
+            // A pty whose other end is gone stays "writable" (hang-up) while its buffer is
+            // full: without this the loop would spin on EAGAIN for ever.
+            let peer_gone = guard.ready().is_write_closed();
+            match guard.try_io(|inner| inner.get_ref().write(bytes)) {
+                Ok(Ok(n)) => {
                     self.took(n);
                     return Ok(n);
                 }
-                Err(e) if e.raw_os_error() == Some(nix::libc::EIO) => {
+                Ok(Err(e)) if e.raw_os_error() == Some(nix::libc::EIO) => {
                     return Err(self.hang_up());
                 }
-                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
-                // A pty whose other end is gone stays "writable" (hang-up) while its buffer is
-                // full: without this the loop would spin on EAGAIN for ever.
-                Err(e) if e.kind() == io::ErrorKind::WouldBlock && peer_gone => {
-                    return Err(self.hang_up());
-                }
-                Err(e) if e.kind() == io::ErrorKind::WouldBlock => {
-                    peer_gone = self.wait_writable().await?;
-                }
-                Err(e) => return Err(self.io("write", e)),
+                Ok(Err(e)) if e.kind() == io::ErrorKind::Interrupted => {}
+                Ok(Err(e)) => return Err(self.io("write", e)),
+                Err(_would_block) if peer_gone => return Err(self.hang_up()),
+                Err(_would_block) => {}
             }
         }
-    }
-
-    /// Waits until the line may take bytes again; returns whether the other end is gone.
-    ///
-    /// The line is registered with the reactor for reading only: registered for writing as
-    /// well, it would wake its loop each time the peer reads (an edge-triggered "writable"
-    /// event), which in lockstep is once a period per link, for nothing. A full line is rare
-    /// (a peer that stopped reading), so a duplicate of the descriptor is registered for
-    /// writing just for this wait.
-    async fn wait_writable(&self) -> LinkResult<bool> {
-        let duplicate = self
-            .fd
-            .get_ref()
-            .try_clone()
-            .map_err(|e| self.io("write", e))?;
-        let watch = register(duplicate, Interest::WRITABLE).map_err(|e| self.io("write", e))?;
-        let guard = watch.writable().await.map_err(|e| self.io("write", e))?;
-        Ok(guard.ready().is_write_closed())
     }
 
     /// Writes all of `bytes`, waiting while the line's buffer is full. Not cancel-safe (use
@@ -299,14 +270,14 @@ impl SerialLine {
     }
 }
 
-/// Registers `file` with tokio's reactor for `interest`.
+/// Registers `file` with tokio's reactor.
 ///
-/// `AsyncFd::with_interest` is deprecated because it cannot check, for an arbitrary `T`, that
+/// `AsyncFd::new` is deprecated because it cannot check, for an arbitrary `T`, that
 /// `as_raw_fd()` stays the same open descriptor for the `AsyncFd`'s whole life; the unsafe
-/// `AsyncFd::register_with_interest` makes the caller promise it. A [`File`] owns its descriptor and returns
+/// `AsyncFd::register` makes the caller promise it. A [`File`] owns its descriptor and returns
 /// that same one until dropped, which is exactly that promise, and this crate forbids unsafe
 /// code, so the safe (deprecated) constructor is the right call here.
 #[allow(deprecated)]
-fn register(file: File, interest: Interest) -> io::Result<AsyncFd<File>> {
-    AsyncFd::with_interest(file, interest)
+fn register(file: File) -> io::Result<AsyncFd<File>> {
+    AsyncFd::new(file)
 }
