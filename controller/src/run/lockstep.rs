@@ -96,9 +96,15 @@ pub async fn run(
                 }
             }
             HostAction::AwaitNodeReady { t_s } => {
-                match tokio::time::timeout_at(sent_at + allowance, mirror.recv_at(t_s)).await {
-                    Err(_elapsed) => Err(mirror.timeout(host.record().periods_done, allowance)),
-                    Ok(frame) => frame.map_err(LoopError::from),
+                // The sensor's line is read here too: a lockstep node writes every cycle, and
+                // one waiting for room on an unread line could not take the end of the run.
+                let deadline = sent_at + allowance;
+                tokio::select! {
+                    frame = tokio::time::timeout_at(deadline, mirror.recv_at(t_s)) => match frame {
+                        Err(_elapsed) => Err(mirror.timeout(host.record().periods_done, allowance)),
+                        Ok(frame) => frame.map_err(LoopError::from),
+                    },
+                    error = sensor.pump() => Err(error),
                 }
             }
         };
