@@ -209,11 +209,7 @@ pub async fn run_checks(
         detail: in_range.unwrap_or_else(|e| e),
         time_s: 0.0,
     });
-    let statuses = mirror
-        .events()
-        .iter()
-        .filter(|e| e.status.is_some())
-        .count();
+    let statuses = mirror.counters().status_frames;
     results.push(CheckResult {
         name: "status_frames",
         node: "fsm",

@@ -10,7 +10,11 @@ use scanhil_protocol::plant_units::{FULL_RANGE_DEG, SensingPair};
 
 use super::host_loop::LoopError;
 
-/// A status or fault frame the node sent, with the loop time it was received at.
+/// A status or fault frame the node sent, with the loop time it was received at. Every fault
+/// is one; of the status frames, those that say something: a node's first, every change of
+/// state, and every one not `running` (a node's heartbeats while it runs are counted in
+/// [`MirrorLinkCounters::status_frames`], not kept one by one: the record stays flat in a
+/// long run).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct NodeEvent {
     /// Loop time at reception, s.
@@ -46,6 +50,8 @@ pub struct MirrorLinkCounters {
     /// SocketCAN: the bus's error frames (error-passive, no ACK, ...; a bus-off also ends
     /// the run). Filled by the link, not the inbox.
     pub bus_error_frames: u64,
+    /// Status frames from the nodes, heartbeats included.
+    pub status_frames: u64,
 }
 
 /// Margin on the mirror's range beyond which an angle reading is not plausible.
@@ -75,6 +81,8 @@ pub type CanDistance = (u32, IldValue, tokio::time::Instant);
 pub struct HostInbox {
     link: String,
     events: Vec<NodeEvent>,
+    /// Each node's state in its latest status frame.
+    node_states: Vec<(NodeId, NodeState)>,
     distances: Vec<CanDistance>,
     counters: MirrorLinkCounters,
 }
@@ -86,6 +94,7 @@ impl HostInbox {
         HostInbox {
             link: link.to_owned(),
             events: Vec::new(),
+            node_states: Vec::new(),
             distances: Vec::new(),
             counters: MirrorLinkCounters::default(),
         }
@@ -132,13 +141,18 @@ impl HostInbox {
                 return Ok(Some((angles.seq, angles.rad())));
             }
             Message::Status(status) if status.node != NodeId::Controller => {
-                self.events.push(NodeEvent {
-                    t_s,
-                    node: status.node,
-                    status: Some(status.state),
-                    fault: None,
-                    step: status.step,
-                });
+                self.counters.status_frames += 1;
+                if self.state_changes(status.node, status.state)
+                    || status.state != NodeState::Running
+                {
+                    self.events.push(NodeEvent {
+                        t_s,
+                        node: status.node,
+                        status: Some(status.state),
+                        fault: None,
+                        step: status.step,
+                    });
+                }
             }
             Message::Fault(fault) if fault.node != NodeId::Controller => {
                 self.events.push(NodeEvent {
@@ -176,6 +190,22 @@ impl HostInbox {
         offset
     }
 
+    /// Records `node`'s state; whether it differs from the one it reported last (or is its
+    /// first).
+    fn state_changes(&mut self, node: NodeId, state: NodeState) -> bool {
+        match self
+            .node_states
+            .iter_mut()
+            .find(|(known, _)| *known == node)
+        {
+            Some((_, last)) => std::mem::replace(last, state) != state,
+            None => {
+                self.node_states.push((node, state));
+                true
+            }
+        }
+    }
+
     /// Real time: the period of a reading with counter `seq` taken while period `expected`
     /// is awaited, or `None` for a reading the loop must pass over (counted):
     /// - the awaited one, or one up to `max_ahead` periods ahead (the readings between went
@@ -211,7 +241,7 @@ impl HostInbox {
         })
     }
 
-    /// Status and fault frames received so far.
+    /// The node events so far: faults and the status frames that say something ([`NodeEvent`]).
     #[must_use]
     pub fn events(&self) -> &[NodeEvent] {
         &self.events

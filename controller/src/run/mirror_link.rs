@@ -233,7 +233,7 @@ impl MirrorLink {
         &mut self.port
     }
 
-    /// Status and fault frames received so far.
+    /// The node events so far (see [`NodeEvent`]: faults and changes of state).
     #[must_use]
     pub fn events(&self) -> &[NodeEvent] {
         self.inbox.events()

@@ -59,7 +59,7 @@ pub struct RunData {
     pub can_distances: Vec<(u32, IldValue, tokio::time::Instant)>,
     /// The mirror link's counters.
     pub mirror_counters: MirrorLinkCounters,
-    /// Status and fault frames of the mirror node.
+    /// The mirror node's faults and changes of state ([`NodeEvent`]).
     pub node_events: Vec<NodeEvent>,
     /// The ILD stream's samples and counters.
     pub sensor: (Vec<CountedSample>, SensorCounters),
