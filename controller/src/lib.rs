@@ -18,7 +18,6 @@
 //! - [`loop_analysis`]: the nominal closed loop: poles, margins, bandwidth, T.
 //! - [`steady_state`]: the steady-state tracking error the nominal loop predicts for a
 //!   periodic reference.
-//! - [`json_file`]: reading and parsing the host's JSON files, errors naming file, line, column.
 //! - [`rig`]: the rig description: control rate, scanner geometry and calibration, sensor.
 //! - [`power_budget`]: a trajectory's steady-state mean coil power from the plant model, the
 //!   nominal loop and the rig's coils.
@@ -40,7 +39,6 @@ pub mod discretise;
 pub mod dual_tone;
 pub mod identify;
 pub mod imaging;
-pub mod json_file;
 pub mod link;
 pub mod loop_analysis;
 pub mod pid;

@@ -21,7 +21,7 @@ use scanhil_protocol::ild::command::MEASURING_RATES_KHZ;
 use serde::{Deserialize, Serialize};
 
 use crate::imaging::reconstruct::ScanSample;
-use crate::json_file::{self, JsonFileError};
+use scanhil_scene::json_file::{self, JsonFileError};
 
 /// A loaded, checked rig description.
 #[derive(Debug, Clone, PartialEq)]

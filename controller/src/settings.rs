@@ -7,12 +7,12 @@ use std::path::{Path, PathBuf};
 use crate::continuous::FactoredTf;
 use crate::discretise::{Method, discretise};
 use crate::dual_tone::DualToneParams;
-use crate::json_file::{self, JsonFileError};
 use crate::loop_analysis::{NominalLoop, ZPoint};
 use crate::pid::{Pid, PidParams};
 use crate::plant_model::PlantModel;
 use crate::scan_controller::{AxisController, AxisLaw, ScanController};
 use crate::sos::Cascade;
+use scanhil_scene::json_file::{self, JsonFileError};
 
 /// The control law and its coefficients (`"kind": "pid"` or `"kind": "dual_tone"`).
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]

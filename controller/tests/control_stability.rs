@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 
 use scanhil_controller::accuracy::tone_placements;
 use scanhil_controller::discretise::Method;
-use scanhil_controller::json_file::JsonFileError;
 use scanhil_controller::settings::{ControllerSettings, SettingsError};
+use scanhil_scene::json_file::JsonFileError;
 
 fn fixture(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

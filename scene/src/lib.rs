@@ -11,6 +11,9 @@
 //! - [`surface`]: plane, tilted plane, step, sphere, height maps, the Duplo brick; ray
 //!   intersection and the true height at any (x, y).
 //! - [`truth`]: a scene file's true surface, read without the emulator's plant sections.
+//! - [`json_file`]: reading and parsing JSON files, errors naming file, line and column (the
+//!   host's files use it too).
 
+pub mod json_file;
 pub mod surface;
 pub mod truth;

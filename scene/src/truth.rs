@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use serde::Deserialize;
 
+use crate::json_file::{self, JsonFileError};
 use crate::surface::{Surface, SurfaceConfig, SurfaceError};
 
 /// The true surface of a scene, to score a reconstruction against.
@@ -21,26 +22,9 @@ pub struct TrueScene {
 /// Why a scene's true surface could not be read.
 #[derive(Debug, thiserror::Error)]
 pub enum TruthError {
-    /// The file could not be read.
-    #[error("cannot read scene {path}: {source}")]
-    Io {
-        /// The scene file.
-        path: PathBuf,
-        /// The OS error.
-        source: std::io::Error,
-    },
-    /// The JSON did not parse, or its `name` or `surface` did not match the format.
-    #[error("{path}:{line}:{column}: {message}")]
-    Parse {
-        /// The scene file.
-        path: PathBuf,
-        /// 1-based line.
-        line: usize,
-        /// 1-based column.
-        column: usize,
-        /// What serde said.
-        message: String,
-    },
+    /// The file could not be read or parsed (file, line and column).
+    #[error(transparent)]
+    File(#[from] JsonFileError),
     /// The scene has no `surface` section.
     #[error("{path}: the scene has no `surface` to score against")]
     NoSurface {
@@ -71,17 +55,7 @@ impl TrueScene {
     /// # Errors
     /// [`TruthError`] naming the file (and line and column for a parse error).
     pub fn from_scene_file(path: &Path) -> Result<TrueScene, TruthError> {
-        let text = std::fs::read_to_string(path).map_err(|source| TruthError::Io {
-            path: path.to_owned(),
-            source,
-        })?;
-        let file: SceneTruthFile =
-            serde_json::from_str(&text).map_err(|err| TruthError::Parse {
-                path: path.to_owned(),
-                line: err.line(),
-                column: err.column(),
-                message: err.to_string(),
-            })?;
+        let file: SceneTruthFile = json_file::parse(&json_file::read_text(path, "scene")?, path)?;
         let config = file.surface.ok_or_else(|| TruthError::NoSurface {
             path: path.to_owned(),
         })?;

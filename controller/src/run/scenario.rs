@@ -21,10 +21,10 @@ use super::link_faults::FaultsConfig;
 use super::power_guard::PowerConfig;
 use crate::imaging::feature::FeatureParams;
 use crate::imaging::pipeline::MAX_PROGRESSIVE_STEPS;
-use crate::json_file::{self, JsonFileError};
 use crate::rig::{Rig, RigError};
 use crate::trajectory::Trajectory;
 use scanhil_protocol::fault_injection::FaultConfigError;
+use scanhil_scene::json_file::{self, JsonFileError};
 
 /// The longest scan a scenario may ask for, s (an hour of 20 kHz loop, 72 million periods).
 pub const MAX_DURATION_S: f64 = 3600.0;

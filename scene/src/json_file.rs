@@ -1,6 +1,6 @@
-//! The host's JSON files (rig descriptions, scenarios, controller settings): read and parsed
-//! with errors that name the file and, for a parse error, its line and column. Each file kind
-//! checks its own fields after this and adds its own `Invalid` errors.
+//! JSON files (the host's rig descriptions, scenarios and controller settings, a scene's true
+//! surface): read and parsed with errors that name the file and, for a parse error, its line
+//! and column. Each file kind checks its own fields after this and adds its own errors.
 
 use std::path::{Path, PathBuf};
 
@@ -12,7 +12,7 @@ pub enum JsonFileError {
     /// The file could not be read.
     #[error("cannot read {kind} {path}: {source}")]
     Io {
-        /// What the file is ("rig", "scenario", "controller settings").
+        /// What the file is ("rig", "scenario", "controller settings", "scene").
         kind: &'static str,
         /// The file.
         path: PathBuf,
