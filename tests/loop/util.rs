@@ -108,45 +108,16 @@ pub fn run_scanhil(args: &[&str]) -> Output {
 
 /// [`run_scanhil`] with the command set up further by `configure` first (limits, privileges).
 pub fn run_scanhil_with(args: &[&str], configure: impl FnOnce(&mut Command)) -> Output {
-    use std::io::Read;
     let mut command = Command::new(scanhil());
     configure(&mut command);
-    let mut child = command
+    let child = command
         .args(args)
         .env("SCANHIL_EMULATOR", emulator())
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
         .expect("starting scanhil");
-    let mut stdout_pipe = child.stdout.take().expect("piped stdout");
-    let mut stderr_pipe = child.stderr.take().expect("piped stderr");
-    let stdout = std::thread::spawn(move || {
-        let mut text = Vec::new();
-        let _ = stdout_pipe.read_to_end(&mut text);
-        text
-    });
-    let stderr = std::thread::spawn(move || {
-        let mut text = Vec::new();
-        let _ = stderr_pipe.read_to_end(&mut text);
-        text
-    });
-    let deadline = std::time::Instant::now() + RUN_LIMIT;
-    let status = loop {
-        if let Some(status) = child.try_wait().expect("waiting for scanhil") {
-            break status;
-        }
-        if std::time::Instant::now() >= deadline {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("scanhil {args:?} did not finish within {RUN_LIMIT:?}");
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    };
-    Output {
-        status,
-        stdout: stdout.join().unwrap_or_default(),
-        stderr: stderr.join().unwrap_or_default(),
-    }
+    exits_within(child, RUN_LIMIT, &format!("scanhil {args:?}"))
 }
 
 /// Panics with both streams when `output` is not a success.
@@ -588,25 +559,49 @@ pub fn children(pid: u32) -> Vec<u32> {
         .collect()
 }
 
-/// Waits up to `limit` for `child` to exit; kills and reaps it (and fails) if it does not.
+/// Waits up to `limit` for `child` to exit, reading its piped stdout and stderr meanwhile (a
+/// full pipe never holds it); kills and reaps it, and fails naming `what`, if it does not.
 pub fn exits_within(
     mut child: std::process::Child,
     limit: Duration,
     what: &str,
 ) -> std::process::Output {
+    // Each pipe is read to its end on a thread of its own, handed over through a channel so
+    // that a killed scanhil's emulator (which shares its stderr) cannot hold the failure up.
+    let drain = |pipe: Option<Box<dyn std::io::Read + Send>>| {
+        let (sender, receiver) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut text = Vec::new();
+            if let Some(mut pipe) = pipe {
+                let _ = pipe.read_to_end(&mut text);
+            }
+            let _ = sender.send(text);
+        });
+        receiver
+    };
+    let stdout = drain(child.stdout.take().map(|p| Box::new(p) as _));
+    let stderr = drain(child.stderr.take().map(|p| Box::new(p) as _));
     let started = Instant::now();
-    while child.try_wait().expect("polling scanhil").is_none() {
+    let status = loop {
+        if let Some(status) = child.try_wait().expect("polling scanhil") {
+            break status;
+        }
         if started.elapsed() > limit {
             let _ = child.kill();
-            let output = child.wait_with_output().expect("reaping scanhil");
+            let _ = child.wait();
+            let stderr = stderr
+                .recv_timeout(Duration::from_secs(2))
+                .unwrap_or_default();
             panic!(
                 "{what}: scanhil still running after {limit:?}; stderr:\n{}",
-                String::from_utf8_lossy(&output.stderr)
+                String::from_utf8_lossy(&stderr)
             );
         }
-        std::thread::sleep(Duration::from_millis(50));
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    Output {
+        status,
+        stdout: stdout.recv().unwrap_or_default(),
+        stderr: stderr.recv().unwrap_or_default(),
     }
-    child
-        .wait_with_output()
-        .expect("collecting scanhil's output")
 }
