@@ -288,6 +288,7 @@ pub fn run_probed(
             mirror_counters: inbox.counters(),
             node_events: inbox.events().to_vec(),
             sensor,
+            sensor_arrivals: None,
             emulator_summary: Some(node_summary),
             frame_faults,
             run_time_s: started.elapsed().as_secs_f64(),

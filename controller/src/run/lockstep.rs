@@ -37,21 +37,29 @@ pub async fn run(
         allowance
     };
     let mut sent_at = tokio::time::Instant::now();
-    // When each period's frames started going out: lockstep's arrival clock, kept only where
-    // sensor samples are paired with the angles (it grows with the run).
-    let keeps_arrivals = host.record().angles.is_some();
+    // When each period's frames started going out: lockstep's arrival clock for Distance
+    // frames on the mirror's link (a sensor on CAN), kept only where they are paired with the
+    // angles (it grows with the run). An ILD line bounds its clock as samples arrive instead
+    // (`SensorLink::period_started`).
+    let keeps_arrivals = host.record().angles.is_some() && matches!(sensor, SensorLink::Elsewhere);
     let mut period_starts = Vec::with_capacity(if keeps_arrivals {
         host.record().periods_planned as usize + 1
     } else {
         0
     });
+    let mut periods_started = 0;
     loop {
         let received: Result<CanFrame, LoopError> = match host.next_action() {
             HostAction::Done => break,
             HostAction::Send(frames) => {
                 let period = host.record().periods_done;
-                if keeps_arrivals && period == period_starts.len() as u64 {
-                    period_starts.push(tokio::time::Instant::now());
+                if period == periods_started {
+                    let now = tokio::time::Instant::now();
+                    sensor.period_started(now);
+                    if keeps_arrivals {
+                        period_starts.push(now);
+                    }
+                    periods_started += 1;
                 }
                 if let Err(error) = mirror
                     .send_within(period, &frames, send_deadline(&host, allowance), interrupt)

@@ -70,7 +70,7 @@ use lead_in::LeadIn;
 use link_faults::LinkFaults;
 use mirror_link::MirrorLink;
 use output_failures::{OutputFailures, RecordingFailure, RecordingFile};
-use pairing::SensorClock;
+use pairing::{ArrivalBound, SensorClock};
 use plan::ScanPlan;
 use scenario::{NodeLink, Scenario, TimingMode};
 use sensor_link::SensorLink;
@@ -242,6 +242,12 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             // The planned samples and a margin (the sensor's clock runs on its own).
             let samples = periods as f64 * period_s * rate_hz * 1.01 + 16.0;
             links.sensor.reserve_samples(samples as usize);
+            links
+                .sensor
+                .bound_clock_by_arrivals(match scenario.timing.mode {
+                    TimingMode::Lockstep => ArrivalBound::steps(period_s, rate_hz),
+                    TimingMode::Realtime => ArrivalBound::wall_clock(rate_hz),
+                });
         }
         // Angle history only where sensor samples are paired with it: a mirror-only run's
         // record takes the same memory however long it runs.
@@ -333,6 +339,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             can_distances,
             mirror_counters,
             node_events,
+            sensor_arrivals: links.sensor.take_arrival_bound(),
             sensor: links.sensor.take_samples(),
             sensor_setup: links.sensor_setup,
             emulator_summary,

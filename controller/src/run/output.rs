@@ -27,7 +27,7 @@ use super::link_faults::InjectedFrameFaults;
 use super::lockstep::LoopRecord;
 use super::mirror_link::{MirrorLinkCounters, NodeEvent};
 use super::output_failures::OutputFailures;
-use super::pairing::{ArrivalClock, CounterUnwrapper, SensorClock};
+use super::pairing::{ArrivalBound, ArrivalClock, CounterUnwrapper, SensorClock};
 use super::plan::PlanSummary;
 use super::scenario::Scenario;
 use super::sensor_link::{CountedSample, ILD_COUNTER_MODULUS, SensorCounters};
@@ -63,6 +63,8 @@ pub struct RunData {
     pub node_events: Vec<NodeEvent>,
     /// The ILD stream's samples and counters.
     pub sensor: (Vec<CountedSample>, SensorCounters),
+    /// The bound the ILD stream's arrivals give on the sensor's clock, when asked for.
+    pub sensor_arrivals: Option<ArrivalBound>,
     /// What the sensor set-up before the run did.
     pub sensor_setup: Option<super::sensor_setup::SensorSetupReport>,
     /// The emulator's exit status and summary line, when it was started by this run.
@@ -96,31 +98,38 @@ pub fn write(
     let range = rig.sensor.map(|sensor| sensor.range());
     let (ild_samples, sensor_counters) = &run.sensor;
     let sensor_counters = *sensor_counters;
-    // The ILD stream's samples are used in place; only Distance frames (a sensor on CAN)
-    // are turned into samples here.
-    let counted: std::borrow::Cow<'_, [CountedSample]> =
-        if run.can_distances.is_empty() {
-            std::borrow::Cow::Borrowed(ild_samples)
-        } else {
-            let mut can_counter = CounterUnwrapper::new(ILD_COUNTER_MODULUS);
-            let mut counted = ild_samples.clone();
-            counted.extend(run.can_distances.iter().map(|&(counter, value, arrived)| {
-                CountedSample {
-                    counter: can_counter.unwrap(u64::from(counter)),
-                    value,
-                    arrived,
-                }
-            }));
-            std::borrow::Cow::Owned(counted)
-        };
-    let clock = match (clock, &record.arrival_clock) {
-        (Some(declared), _) => declared,
-        (None, Some(arrivals)) => estimate_sensor_clock(&counted, arrivals, measuring_rate_hz),
-        (None, None) => SensorClock {
-            measuring_rate_hz,
-            counter_zero_s: 0.0,
-        },
+    // Distance frames (a sensor on CAN) with their counters unwrapped.
+    let mut can_counter = CounterUnwrapper::new(ILD_COUNTER_MODULUS);
+    let can_counters: Vec<u64> = run
+        .can_distances
+        .iter()
+        .map(|&(counter, _, _)| can_counter.unwrap(u64::from(counter)))
+        .collect();
+    // The ILD stream's samples are used in place; only Distance frames are turned into
+    // samples here.
+    let counted: std::borrow::Cow<'_, [CountedSample]> = if run.can_distances.is_empty() {
+        std::borrow::Cow::Borrowed(ild_samples)
+    } else {
+        let mut counted = ild_samples.clone();
+        counted.extend(
+            can_counters
+                .iter()
+                .zip(&run.can_distances)
+                .map(|(&counter, &(_, value, _))| CountedSample { counter, value }),
+        );
+        std::borrow::Cow::Owned(counted)
     };
+    let clock = clock.unwrap_or_else(|| {
+        estimate_sensor_clock(
+            run.sensor_arrivals.as_ref(),
+            can_counters
+                .iter()
+                .zip(&run.can_distances)
+                .map(|(&counter, &(_, _, arrived))| (counter, arrived)),
+            record.arrival_clock.as_ref(),
+            measuring_rate_hz,
+        )
+    });
     let period_s = record.period_s;
     // The recorded frame: after the lead-in, to the last period done.
     let frame = ScanFrame {
@@ -346,18 +355,33 @@ fn fault_report(
 
 /// A sensor's clock estimated from arrival times (a real sensor, which declares none): a
 /// sample arrives after it was measured, so the earliest `arrival - counter / rate` on the
-/// loop's time axis ([`ArrivalClock`]) bounds counter 0's instant from above: within the
-/// line's transmission time in real time, within one control period in lockstep (loop time
-/// is known there only to the period the sample arrived in).
+/// loop's time axis bounds counter 0's instant from above: within the line's transmission
+/// time in real time, within one control period in lockstep (loop time is known there only
+/// to the period the sample arrived in). The ILD line's samples were bounded as they came
+/// (`ild`, see [`ArrivalBound`]); Distance frames on the mirror's link (`(unwrapped counter,
+/// arrival)`) are placed with the loop's `arrivals` clock here. Counter 0 at loop time 0
+/// when nothing bounds it.
 fn estimate_sensor_clock(
-    samples: &[CountedSample],
-    arrivals: &ArrivalClock,
+    ild: Option<&ArrivalBound>,
+    can_distances: impl Iterator<Item = (u64, tokio::time::Instant)>,
+    arrivals: Option<&ArrivalClock>,
     measuring_rate_hz: f64,
 ) -> SensorClock {
-    let counter_zero_s = samples
-        .iter()
-        .map(|s| arrivals.loop_time_s(s.arrived) - s.counter as f64 / measuring_rate_hz)
-        .fold(f64::INFINITY, f64::min);
+    let epoch = match arrivals {
+        Some(ArrivalClock::Epoch(epoch)) => Some(*epoch),
+        _ => None,
+    };
+    let ild_bound_s = ild
+        .and_then(|bound| bound.counter_zero_s(epoch))
+        .unwrap_or(f64::INFINITY);
+    let can_bound_s = arrivals.map_or(f64::INFINITY, |arrivals| {
+        can_distances
+            .map(|(counter, arrived)| {
+                arrivals.loop_time_s(arrived) - counter as f64 / measuring_rate_hz
+            })
+            .fold(f64::INFINITY, f64::min)
+    });
+    let counter_zero_s = ild_bound_s.min(can_bound_s);
     SensorClock {
         measuring_rate_hz,
         counter_zero_s: if counter_zero_s.is_finite() {
@@ -485,26 +509,24 @@ mod tests {
 
     use std::time::Duration;
 
-    use scanhil_protocol::ild::IldValue;
-
     use super::estimate_sensor_clock;
-    use crate::run::pairing::ArrivalClock;
-    use crate::run::sensor_link::CountedSample;
+    use crate::run::pairing::{ArrivalBound, ArrivalClock};
 
     const RATE_HZ: f64 = 20_000.0;
     /// One ILD cycle (3 bytes of 10 bits) at 691 200 Bd.
     const TRANSMISSION_S: f64 = 30.0 / 691_200.0;
 
-    /// Samples with counters `first..first + n` measured from `zero_s` on the loop's time
-    /// axis; each arrives `TRANSMISSION_S` plus a queueing delay (up to `jitter_s`, zero for
-    /// every 50th sample: the line drains in bursts) after its instant, in shuffled order.
+    /// `(counter, arrival)` of samples with counters `first..first + n` measured from
+    /// `zero_s` on the loop's time axis; each arrives `TRANSMISSION_S` plus a queueing delay
+    /// (up to `jitter_s`, zero for every 50th sample: the line drains in bursts) after its
+    /// instant, in shuffled order.
     fn samples(
         epoch: tokio::time::Instant,
         zero_s: f64,
         first: u64,
         n: u64,
         jitter_s: f64,
-    ) -> Vec<CountedSample> {
+    ) -> Vec<(u64, tokio::time::Instant)> {
         let mut state = 0x2545_f491_4f6c_dd1du64;
         let mut uniform = || {
             state ^= state << 13;
@@ -512,7 +534,7 @@ mod tests {
             state ^= state << 17;
             (state >> 11) as f64 / (1u64 << 53) as f64
         };
-        let mut out: Vec<CountedSample> = (first..first + n)
+        let mut out: Vec<(u64, tokio::time::Instant)> = (first..first + n)
             .map(|counter| {
                 let queued = if counter % 50 == 0 {
                     0.0
@@ -520,16 +542,34 @@ mod tests {
                     uniform() * jitter_s
                 };
                 let measured = zero_s + counter as f64 / RATE_HZ;
-                CountedSample {
-                    counter,
-                    value: IldValue::Distance(1000),
-                    arrived: epoch + Duration::from_secs_f64(measured + TRANSMISSION_S + queued),
-                }
+                let arrived = epoch + Duration::from_secs_f64(measured + TRANSMISSION_S + queued);
+                (counter, arrived)
             })
             .collect();
         // Arrival order never matters: hand them over last first.
         out.reverse();
         out
+    }
+
+    /// The estimate from `samples` both ways they come: on the ILD line (bounded as they
+    /// arrive) and as Distance frames on the mirror's link (placed afterwards); both must agree.
+    fn estimate(epoch: tokio::time::Instant, samples: &[(u64, tokio::time::Instant)]) -> f64 {
+        let mut ild = ArrivalBound::wall_clock(RATE_HZ);
+        for &(counter, arrived) in samples {
+            ild.note(arrived, counter);
+        }
+        let arrivals = ArrivalClock::Epoch(epoch);
+        let on_the_line =
+            estimate_sensor_clock(Some(&ild), std::iter::empty(), Some(&arrivals), RATE_HZ);
+        let on_can = estimate_sensor_clock(None, samples.iter().copied(), Some(&arrivals), RATE_HZ);
+        assert_eq!(on_the_line.measuring_rate_hz, RATE_HZ);
+        assert!(
+            (on_the_line.counter_zero_s - on_can.counter_zero_s).abs() < 1e-9,
+            "ILD line {} s, CAN {} s",
+            on_the_line.counter_zero_s,
+            on_can.counter_zero_s
+        );
+        on_the_line.counter_zero_s
     }
 
     #[test]
@@ -540,17 +580,12 @@ mod tests {
             (0.5, 262_144 + 17, 5e-3), // past one wrap of the 18-bit counter
             (0.0, 0, 0.0),
         ] {
-            let clock = estimate_sensor_clock(
-                &samples(epoch, zero_s, first, 4000, jitter_s),
-                &ArrivalClock::Epoch(epoch),
-                RATE_HZ,
-            );
-            assert_eq!(clock.measuring_rate_hz, RATE_HZ);
-            let error = clock.counter_zero_s - zero_s;
+            let estimate_s = estimate(epoch, &samples(epoch, zero_s, first, 4000, jitter_s));
+            let error = estimate_s - zero_s;
             assert!(
                 (-1e-9..=TRANSMISSION_S + 1e-9).contains(&error),
-                "estimate {} for a true {zero_s}: {error} s off (transmission {TRANSMISSION_S} s)",
-                clock.counter_zero_s
+                "estimate {estimate_s} for a true {zero_s}: {error} s off (transmission \
+                 {TRANSMISSION_S} s)"
             );
         }
     }
@@ -560,23 +595,17 @@ mod tests {
         // Every sample delayed by at least 1 ms except one prompt one: the prompt one decides.
         let epoch = tokio::time::Instant::now();
         let mut all = samples(epoch, 0.02, 0, 1000, 3e-3);
-        for sample in &mut all {
-            if sample.counter != 500 {
-                sample.arrived += Duration::from_millis(1);
+        for (counter, arrived) in &mut all {
+            if *counter != 500 {
+                *arrived += Duration::from_millis(1);
             }
         }
-        let clock = estimate_sensor_clock(&all, &ArrivalClock::Epoch(epoch), RATE_HZ);
-        let error = clock.counter_zero_s - 0.02;
+        let error = estimate(epoch, &all) - 0.02;
         assert!((-1e-9..=TRANSMISSION_S + 1e-9).contains(&error), "{error}");
     }
 
     #[test]
     fn no_samples_give_counter_zero_at_the_epoch() {
-        let clock = estimate_sensor_clock(
-            &[],
-            &ArrivalClock::Epoch(tokio::time::Instant::now()),
-            RATE_HZ,
-        );
-        assert_eq!(clock.counter_zero_s, 0.0);
+        assert_eq!(estimate(tokio::time::Instant::now(), &[]), 0.0);
     }
 }

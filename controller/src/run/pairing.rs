@@ -54,6 +54,141 @@ impl ArrivalClock {
     }
 }
 
+/// The bound on a sensor's counter-0 instant that arrivals give, kept as samples arrive (a
+/// real sensor declares no clock): a sample arrives after it was measured, so the earliest
+/// `loop time of arrival - counter / rate` bounds counter 0's instant from above. Nothing is
+/// kept per sample, so a long run's samples cost only their counter and value.
+///
+/// On the wall clock (real time), loop time 0 (the epoch) is settled only at the end of the
+/// run, from the earliest reading; the bound is kept as the earliest `arrival - counter /
+/// rate` from the first arrival and placed on the loop's axis by
+/// [`ArrivalBound::counter_zero_s`]. In lockstep, loop time advances one period per Step: an
+/// arrival after the start of period `k` stands for loop time up to `(k + 1)` periods, so the
+/// starts are noted as they happen ([`ArrivalBound::period_started`]). Only the last
+/// [`RECENT_PERIOD_STARTS`] are kept: a sample is noted when its cycle is read, periods
+/// before that have long started (an arrival older than the kept starts counts as after all
+/// of them: a looser bound, never a wrong one).
+#[derive(Debug, Clone)]
+pub struct ArrivalBound {
+    measuring_rate_hz: f64,
+    axis: ArrivalAxis,
+}
+
+/// How many of the latest period starts a lockstep [`ArrivalBound`] keeps (51 ms at 20 kHz).
+pub const RECENT_PERIOD_STARTS: usize = 1024;
+
+/// Where an [`ArrivalBound`] places arrivals.
+#[derive(Debug, Clone)]
+enum ArrivalAxis {
+    /// Real time: the earliest `(arrival - origin) - counter / rate`, s, from the first
+    /// arrival (`origin`).
+    WallClock {
+        origin: Option<tokio::time::Instant>,
+        earliest_s: f64,
+    },
+    /// Lockstep: the latest period starts, how many started before them, and the bound so far.
+    Steps {
+        period_s: f64,
+        recent_starts: std::collections::VecDeque<tokio::time::Instant>,
+        earlier_starts: u64,
+        bound_s: f64,
+    },
+}
+
+impl ArrivalBound {
+    /// Arrivals on the wall clock (a real-time loop), of a sensor measuring at
+    /// `measuring_rate_hz`.
+    #[must_use]
+    pub fn wall_clock(measuring_rate_hz: f64) -> ArrivalBound {
+        ArrivalBound {
+            measuring_rate_hz,
+            axis: ArrivalAxis::WallClock {
+                origin: None,
+                earliest_s: f64::INFINITY,
+            },
+        }
+    }
+
+    /// Arrivals counted in lockstep periods of `period_s`.
+    #[must_use]
+    pub fn steps(period_s: f64, measuring_rate_hz: f64) -> ArrivalBound {
+        ArrivalBound {
+            measuring_rate_hz,
+            axis: ArrivalAxis::Steps {
+                period_s,
+                recent_starts: std::collections::VecDeque::with_capacity(RECENT_PERIOD_STARTS),
+                earlier_starts: 0,
+                bound_s: f64::INFINITY,
+            },
+        }
+    }
+
+    /// Lockstep: the next period's frames started going out at `at` (nothing on the wall
+    /// clock).
+    pub fn period_started(&mut self, at: tokio::time::Instant) {
+        if let ArrivalAxis::Steps {
+            recent_starts,
+            earlier_starts,
+            ..
+        } = &mut self.axis
+        {
+            if recent_starts.len() == RECENT_PERIOD_STARTS {
+                recent_starts.pop_front();
+                *earlier_starts += 1;
+            }
+            recent_starts.push_back(at);
+        }
+    }
+
+    /// A sample with the unwrapped counter `counter` arrived at `arrived`.
+    pub fn note(&mut self, arrived: tokio::time::Instant, counter: u64) {
+        let counter_s = counter as f64 / self.measuring_rate_hz;
+        match &mut self.axis {
+            ArrivalAxis::WallClock { origin, earliest_s } => {
+                let origin = *origin.get_or_insert(arrived);
+                *earliest_s = earliest_s.min(seconds_between(origin, arrived) - counter_s);
+            }
+            ArrivalAxis::Steps {
+                period_s,
+                recent_starts,
+                earlier_starts,
+                bound_s,
+            } => {
+                let started = *earlier_starts
+                    + recent_starts.partition_point(|start| *start <= arrived) as u64;
+                *bound_s = bound_s.min(started as f64 * *period_s - counter_s);
+            }
+        }
+    }
+
+    /// The bound on counter 0's loop time, s, with loop time 0 at `epoch` on the wall clock
+    /// (the real-time loop's; unused in lockstep); `None` before any sample.
+    #[must_use]
+    pub fn counter_zero_s(&self, epoch: Option<tokio::time::Instant>) -> Option<f64> {
+        let bound_s = match &self.axis {
+            ArrivalAxis::WallClock { origin, earliest_s } => {
+                earliest_s + seconds_between(epoch?, (*origin)?)
+            }
+            ArrivalAxis::Steps { bound_s, .. } => *bound_s,
+        };
+        bound_s.is_finite().then_some(bound_s)
+    }
+
+    /// The sensor's measuring rate, Hz.
+    #[must_use]
+    pub fn measuring_rate_hz(&self) -> f64 {
+        self.measuring_rate_hz
+    }
+}
+
+/// `to - from`, s, negative when `to` is earlier.
+fn seconds_between(from: tokio::time::Instant, to: tokio::time::Instant) -> f64 {
+    match to.checked_duration_since(from) {
+        Some(after) => after.as_secs_f64(),
+        None => -from.duration_since(to).as_secs_f64(),
+    }
+}
+
 /// Unwraps a counter that wraps at `modulus` (the ILD's 18-bit measured-value counter, a CAN
 /// sequence counter) into a monotonic count, and counts the values that went missing.
 #[derive(Debug, Clone)]
@@ -221,6 +356,44 @@ mod tests {
         assert_eq!(clock.loop_time_s(at(15)), 1.0);
         assert_eq!(clock.loop_time_s(at(20)), 1.5);
         assert_eq!(clock.loop_time_s(at(99)), 1.5);
+    }
+
+    #[test]
+    fn lockstep_bound_kept_as_samples_arrive_is_the_bound_over_all_period_starts() {
+        // 5000 periods 10 us apart; the sensor's samples (two a period, counter zero at
+        // -3 us) arrive 1 to 9 us into the period after the one they were measured in. Kept
+        // as they come (only the latest starts held), the bound is the one over every start.
+        let start = tokio::time::Instant::now();
+        let at = |ns: u64| start + std::time::Duration::from_nanos(ns);
+        let (period_s, rate_hz) = (0.5, 2.0 / 0.5);
+        let mut bound = ArrivalBound::steps(period_s, rate_hz);
+        let mut sent = Vec::new();
+        let mut arrivals = Vec::new();
+        for k in 0..5000u64 {
+            let started = at(k * 10_000);
+            sent.push(started);
+            bound.period_started(started);
+            for (i, delay_ns) in [(0, 1000 + (k * 7919) % 8000), (1, 9000)] {
+                let counter = 2 * k + i;
+                let arrived = started + std::time::Duration::from_nanos(delay_ns);
+                bound.note(arrived, counter);
+                arrivals.push((counter, arrived));
+            }
+        }
+        assert!(
+            sent.len() > RECENT_PERIOD_STARTS,
+            "the window must be passed"
+        );
+        let clock = ArrivalClock::Steps { period_s, sent };
+        let over_all = arrivals
+            .iter()
+            .map(|&(counter, arrived)| clock.loop_time_s(arrived) - counter as f64 / rate_hz)
+            .fold(f64::INFINITY, f64::min);
+        assert_eq!(bound.counter_zero_s(None), Some(over_all));
+        assert_eq!(
+            ArrivalBound::steps(period_s, rate_hz).counter_zero_s(None),
+            None
+        );
     }
 
     #[test]

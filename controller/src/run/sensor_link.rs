@@ -15,22 +15,21 @@ use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{ByteCapture, LinkError, LinkUri, PtyPair};
 
 use super::host_loop::LoopError;
-use super::pairing::CounterUnwrapper;
+use super::pairing::{ArrivalBound, CounterUnwrapper};
 
 /// The ILD counter's modulus (18 bits).
 pub const ILD_COUNTER_MODULUS: u64 = 1 << 18;
 /// Values per output cycle: the distance and the counter.
 const VALUES_PER_CYCLE: usize = 2;
 
-/// One decoded sensor sample: unwrapped counter and value.
+/// One decoded sensor sample: unwrapped counter and value (16 bytes: a long run keeps one a
+/// sample; their arrivals go into an [`ArrivalBound`] instead of being kept).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CountedSample {
     /// The measured-value counter, unwrapped (monotonic).
     pub counter: u64,
     /// The distance or error.
     pub value: IldValue,
-    /// When its cycle was complete on this side (for estimating a real sensor's clock).
-    pub arrived: tokio::time::Instant,
 }
 
 /// What the sensor link saw.
@@ -71,11 +70,13 @@ pub struct IldSampleDecoder {
     log: SampleLog,
 }
 
-/// Decoded samples with their counters unwrapped.
+/// Decoded samples with their counters unwrapped, and the bound their arrivals give on the
+/// sensor's clock (when the loop asked for one).
 #[derive(Debug)]
 struct SampleLog {
     unwrapper: CounterUnwrapper,
     samples: Vec<CountedSample>,
+    arrivals: Option<ArrivalBound>,
 }
 
 impl SensorLink {
@@ -116,6 +117,31 @@ impl SensorLink {
     pub fn reserve_samples(&mut self, samples: usize) {
         if let SensorLink::Ild(stream) = self {
             stream.log.samples.reserve(samples);
+        }
+    }
+
+    /// Bounds the sensor's clock from the arrivals of the samples from now on (see
+    /// [`ArrivalBound`]; nothing when the sensor is elsewhere).
+    pub fn bound_clock_by_arrivals(&mut self, bound: ArrivalBound) {
+        if let SensorLink::Ild(stream) = self {
+            stream.log.arrivals = Some(bound);
+        }
+    }
+
+    /// Lockstep: the next period's frames started going out at `at` (for the arrival bound).
+    pub fn period_started(&mut self, at: tokio::time::Instant) {
+        if let SensorLink::Ild(stream) = self
+            && let Some(arrivals) = &mut stream.log.arrivals
+        {
+            arrivals.period_started(at);
+        }
+    }
+
+    /// The arrival bound on the sensor's clock, taken out (`None` if none was asked for).
+    pub fn take_arrival_bound(&mut self) -> Option<ArrivalBound> {
+        match self {
+            SensorLink::Elsewhere => None,
+            SensorLink::Ild(stream) => stream.log.arrivals.take(),
         }
     }
 
@@ -232,6 +258,7 @@ impl SampleLog {
         SampleLog {
             unwrapper: CounterUnwrapper::new(ILD_COUNTER_MODULUS),
             samples: Vec::new(),
+            arrivals: None,
         }
     }
 
@@ -240,10 +267,12 @@ impl SampleLog {
             Some(&raw) => self.unwrapper.unwrap(u64::from(raw)),
             None => self.samples.len() as u64,
         };
+        if let Some(arrivals) = &mut self.arrivals {
+            arrivals.note(cycle.arrived, counter);
+        }
         self.samples.push(CountedSample {
             counter,
             value: cycle.distance,
-            arrived: cycle.arrived,
         });
     }
 
