@@ -16,6 +16,7 @@ use std::path::Path;
 use std::time::Duration;
 
 use anyhow::{Context, bail};
+use scanhil_controller::run::chunked::Chunked;
 use scanhil_controller::run::host_inbox::HostInbox;
 use scanhil_controller::run::host_loop::{Heard, HostAction, HostLoop, LoopError, LoopRecord};
 use scanhil_controller::run::link_faults::LinkFaults;
@@ -77,18 +78,23 @@ pub struct WireCounts {
 
 impl InProcessOutcome {
     /// Writes the output folder of `scanhil scan` (report, point cloud, height map, plots)
-    /// into `out_dir`; returns how the run ended.
+    /// into `out_dir`; returns how the run ended. The outcome keeps its sensor samples and
+    /// angle record for the caller (the writer consumes the copies it is given: in-process
+    /// runs are short).
     ///
     /// # Errors
     /// A file that cannot be written (all of them named, after the others were written).
-    pub fn write(&self, out_dir: &Path) -> anyhow::Result<ScanEnd> {
+    pub fn write(&mut self, out_dir: &Path) -> anyhow::Result<ScanEnd> {
+        let kept = (self.run.sensor.0.clone(), self.run.record.angles.clone());
         let result = output::write(
             &self.scenario,
             &self.plan,
-            &self.run,
+            &mut self.run,
             self.sensor_clock,
             out_dir,
-        )?;
+        );
+        (self.run.sensor.0, self.run.record.angles) = kept;
+        let result = result?;
         anyhow::ensure!(
             result.failed_outputs.is_empty(),
             "{}: outputs not written: {}",
@@ -489,7 +495,7 @@ impl Transport {
     fn finish(
         mut self,
     ) -> anyhow::Result<(
-        Vec<scanhil_controller::run::sensor_link::CountedSample>,
+        Chunked<scanhil_controller::run::sensor_link::CountedSample>,
         scanhil_controller::run::sensor_link::SensorCounters,
     )> {
         if let Some(capture) = &mut self.capture {
@@ -501,7 +507,7 @@ impl Transport {
                 if let Some(capture) = &mut sensor.capture {
                     capture.flush().context("recording the ILD stream")?;
                 }
-                Ok(sensor.decoder.snapshot())
+                Ok(sensor.decoder.finish())
             }
         }
     }

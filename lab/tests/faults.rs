@@ -325,7 +325,13 @@ fn the_sensor_losing_its_peak_is_sent_and_seen_as_the_ild_error_values() {
             .filter(|s| matches!(s.value, scanhil_protocol::ild::IldValue::Error(_)))
             .count() as u64
     };
-    let (faulty_samples, clean_samples) = (&outcome.run.sensor.0, &clean.run.sensor.0);
+    let held = |samples: &scanhil_controller::run::chunked::Chunked<_>| {
+        samples.iter().copied().collect::<Vec<_>>()
+    };
+    let (faulty_samples, clean_samples) = (
+        &held(&outcome.run.sensor.0)[..],
+        &held(&clean.run.sensor.0)[..],
+    );
     assert_eq!(faulty_samples.len(), clean_samples.len());
     let is_error = |value: &scanhil_protocol::ild::IldValue| {
         matches!(value, scanhil_protocol::ild::IldValue::Error(_))

@@ -21,7 +21,7 @@ use super::progressive::{
     ProgressiveComparison, ProgressivePoint, ProgressiveRun, ScanFrame, progressive_errors,
 };
 use super::ransac::{PlaneFit, RansacError, RansacParams, fit_plane};
-use super::reconstruct::{DEFAULT_MODEL, Reconstruction, ScanSample, reconstruct};
+use super::reconstruct::{DEFAULT_MODEL, Reconstruction, ScanSample, reconstruct_each};
 use super::snapshots::{SNAPSHOT_FRACTIONS, SnapshotCoverage, draw_snapshots, snapshots};
 use crate::rig::Calibration;
 
@@ -174,7 +174,8 @@ pub enum ImagingError {
     },
 }
 
-/// Calibrates, reconstructs, grids, fills and measures `samples`.
+/// Calibrates, reconstructs, grids, fills and measures `samples`: [`reconstruct_samples`],
+/// then [`image_points`].
 ///
 /// # Errors
 /// [`ImagingError`]: an unusable setup or option, no point to lay a grid over, a base plane
@@ -184,6 +185,33 @@ pub fn image_samples(
     samples: &[ScanSample],
     options: &ImagingOptions,
 ) -> Result<Imaging, ImagingError> {
+    image_points(
+        reconstruct_samples(samples.iter().copied(), options)?,
+        options,
+    )
+}
+
+/// Calibrates and reconstructs samples as they come, with the options' setup, model and
+/// calibration (a scan's frame, paired as it is read, is never held as samples).
+///
+/// # Errors
+/// [`ImagingError`]: an unusable setup or option.
+pub fn reconstruct_samples(
+    samples: impl IntoIterator<Item = ScanSample>,
+    options: &ImagingOptions,
+) -> Result<Reconstruction, ImagingError> {
+    check_options(options)?;
+    let scanner = Scanner::new(options.setup, options.model)?;
+    Ok(reconstruct_each(
+        samples
+            .into_iter()
+            .map(|sample| options.calibration.apply(sample)),
+        &scanner,
+    ))
+}
+
+/// The options no imaging can use.
+fn check_options(options: &ImagingOptions) -> Result<(), ImagingError> {
     let steps = options.progressive_steps;
     if !(1..=MAX_PROGRESSIVE_STEPS).contains(&steps) {
         return Err(ImagingError::Options {
@@ -191,13 +219,20 @@ pub fn image_samples(
             reason: format!("{steps} is not between 1 and {MAX_PROGRESSIVE_STEPS}"),
         });
     }
-    let scanner = Scanner::new(options.setup, options.model)?;
-    let calibrated: Vec<ScanSample> = samples
-        .iter()
-        .map(|&sample| options.calibration.apply(sample))
-        .collect();
-    let reconstruction = reconstruct(&calibrated, &scanner);
-    drop(calibrated);
+    Ok(())
+}
+
+/// Grids, fills and measures reconstructed points.
+///
+/// # Errors
+/// [`ImagingError`]: an unusable option, no point to lay a grid over, a base plane that
+/// cannot be fitted for `subtract_plane`. A feature that cannot be measured is not an error
+/// here: it is kept in [`Imaging::feature`].
+pub fn image_points(
+    reconstruction: Reconstruction,
+    options: &ImagingOptions,
+) -> Result<Imaging, ImagingError> {
+    check_options(options)?;
     let xyz: Vec<[f64; 3]> = reconstruction
         .cloud
         .points

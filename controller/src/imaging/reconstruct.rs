@@ -64,7 +64,20 @@ pub struct Reconstruction {
 /// a distance become no point (they are counted, never guessed).
 #[must_use]
 pub fn reconstruct(samples: &[ScanSample], scanner: &Scanner) -> Reconstruction {
-    let mut points = Vec::with_capacity(samples.len());
+    reconstruct_each(samples.iter().copied(), scanner)
+}
+
+/// [`reconstruct`] of samples as they come (a frame paired as it is read): room for the
+/// iterator's upper bound of points is reserved up front, so the cloud is never reallocated
+/// while it grows (untouched room costs no memory).
+#[must_use]
+pub fn reconstruct_each(
+    samples: impl IntoIterator<Item = ScanSample>,
+    scanner: &Scanner,
+) -> Reconstruction {
+    let samples = samples.into_iter();
+    let (lower, upper) = samples.size_hint();
+    let mut points = Vec::with_capacity(upper.unwrap_or(lower));
     let (mut missing_samples, mut non_finite_samples) = (0, 0);
     for s in samples {
         let Some(z_meas_mm) = s.z_meas_mm else {

@@ -159,8 +159,7 @@ impl LoopRecord {
     /// pair) or not (`false`: memory flat in the run's length).
     #[must_use]
     pub fn keeping_angles(mut self, keep: bool) -> LoopRecord {
-        let planned = usize::try_from(self.periods_planned).unwrap_or(0);
-        self.angles = keep.then(|| AngleTrack::with_capacity(self.period_s, planned));
+        self.angles = keep.then(|| AngleTrack::new(self.period_s));
         self
     }
 

@@ -13,6 +13,7 @@
 //! - [`sensor_link`]: the ILD stream seen from the controller, with its raw recording.
 //! - [`sensor_setup`]: configuring and reading back the sensor before a scan.
 //! - [`bus_load`]: refusing a loop that cannot fit on a link's bit rate.
+//! - [`chunked`]: what a run keeps per sample, in chunks freed as imaging passes them.
 //! - [`lockstep`], [`realtime`]: the two loops.
 //! - [`interrupt`]: Ctrl-C, SIGTERM and SIGHUP stop the loop like any early stop.
 //! - [`plan`]: what a scan runs, worked out before its links open: controller, power check,
@@ -31,6 +32,7 @@
 //! - [`plant_link`]: [`crate::link::PlantLink`] over a real mirror link, for `scanhil identify`.
 
 pub mod bus_load;
+pub mod chunked;
 pub mod conformance;
 pub mod emulator_process;
 pub mod host_inbox;
@@ -218,7 +220,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         .build()
         .context("starting the I/O runtime")?;
     let out_dir = options.out_dir.clone();
-    let outcome = runtime.block_on(async {
+    let mut outcome = runtime.block_on(async {
         let started = std::time::Instant::now();
         let plan = LinkPlan {
             fsm: scenario.links.fsm.clone(),
@@ -239,9 +241,6 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         let mut interrupt =
             interrupt::Interrupt::install().context("installing the signal handlers")?;
         if let Some(rate_hz) = sensor_rate_hz {
-            // The planned samples and a margin (the sensor's clock runs on its own).
-            let samples = periods as f64 * period_s * rate_hz * 1.01 + 16.0;
-            links.sensor.reserve_samples(samples as usize);
             links
                 .sensor
                 .bound_clock_by_arrivals(match scenario.timing.mode {
@@ -353,7 +352,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
     output::write(
         &scenario,
         &plan_summary,
-        &outcome,
+        &mut outcome,
         declared,
         &options.out_dir,
     )

@@ -23,21 +23,21 @@ use scanhil_protocol::ild::IldValue;
 use scanhil_report::{Axis, Chart, Series, draw_charts};
 use scanhil_scene::truth::TrueScene;
 
+use super::chunked::Chunked;
 use super::link_faults::InjectedFrameFaults;
 use super::lockstep::LoopRecord;
 use super::mirror_link::{MirrorLinkCounters, NodeEvent};
 use super::output_failures::OutputFailures;
-use super::pairing::{ArrivalBound, ArrivalClock, CounterUnwrapper, SensorClock};
+use super::pairing::{ArrivalBound, ArrivalClock, CounterUnwrapper, FramePairing, SensorClock};
 use super::plan::PlanSummary;
 use super::scenario::Scenario;
 use super::sensor_link::{CountedSample, ILD_COUNTER_MODULUS, SensorCounters};
 use super::tracking::{PlotPoint, TrackingSummary};
 use super::{ScanEnd, ScanResult};
 use crate::imaging::grid::GridMethod;
-use crate::imaging::pipeline::{ImagingOptions, image_samples, write_outputs};
+use crate::imaging::pipeline::{ImagingOptions, image_points, reconstruct_samples, write_outputs};
 use crate::imaging::ply::PlyEncoding;
 use crate::imaging::progressive::ScanFrame;
-use crate::imaging::reconstruct::ScanSample;
 
 /// The mirror link's candump log.
 pub const FSM_LOG: &str = "fsm.log";
@@ -62,7 +62,7 @@ pub struct RunData {
     /// The mirror node's faults and changes of state ([`NodeEvent`]).
     pub node_events: Vec<NodeEvent>,
     /// The ILD stream's samples and counters.
-    pub sensor: (Vec<CountedSample>, SensorCounters),
+    pub sensor: (Chunked<CountedSample>, SensorCounters),
     /// The bound the ILD stream's arrivals give on the sensor's clock, when asked for.
     pub sensor_arrivals: Option<ArrivalBound>,
     /// What the sensor set-up before the run did.
@@ -81,23 +81,24 @@ pub struct RunData {
 /// Images the run with the one imaging pipeline (the rig's geometry and calibration) and
 /// writes every output file; returns how the run ended and the files that could not be
 /// written (each failed alone; report.json lists the others' failures in `outputs.failed`).
+/// The sensor's samples and the angle record are taken out of `run` and consumed as they are
+/// paired and reconstructed: a long frame is never held as samples and points at once.
 ///
 /// # Errors
 /// A truth scene that cannot be read, samples that cannot be imaged.
 pub fn write(
     scenario: &Scenario,
     plan: &PlanSummary,
-    run: &RunData,
+    run: &mut RunData,
     clock: Option<SensorClock>,
     out_dir: &Path,
 ) -> anyhow::Result<ScanResult> {
     let mut failed = run.failed_recordings.clone();
-    let record = &run.record;
     let rig = &scenario.rig;
     let measuring_rate_hz = rig.sensor.map_or(0.0, |sensor| sensor.measuring_rate_hz);
     let range = rig.sensor.map(|sensor| sensor.range());
-    let (ild_samples, sensor_counters) = &run.sensor;
-    let sensor_counters = *sensor_counters;
+    let ild_samples = std::mem::take(&mut run.sensor.0);
+    let sensor_counters = run.sensor.1;
     // Distance frames (a sensor on CAN) with their counters unwrapped.
     let mut can_counter = CounterUnwrapper::new(ILD_COUNTER_MODULUS);
     let can_counters: Vec<u64> = run
@@ -105,20 +106,6 @@ pub fn write(
         .iter()
         .map(|&(counter, _, _)| can_counter.unwrap(u64::from(counter)))
         .collect();
-    // The ILD stream's samples are used in place; only Distance frames are turned into
-    // samples here.
-    let counted: std::borrow::Cow<'_, [CountedSample]> = if run.can_distances.is_empty() {
-        std::borrow::Cow::Borrowed(ild_samples)
-    } else {
-        let mut counted = ild_samples.clone();
-        counted.extend(
-            can_counters
-                .iter()
-                .zip(&run.can_distances)
-                .map(|(&counter, &(_, value, _))| CountedSample { counter, value }),
-        );
-        std::borrow::Cow::Owned(counted)
-    };
     let clock = clock.unwrap_or_else(|| {
         estimate_sensor_clock(
             run.sensor_arrivals.as_ref(),
@@ -126,46 +113,34 @@ pub fn write(
                 .iter()
                 .zip(&run.can_distances)
                 .map(|(&counter, &(_, _, arrived))| (counter, arrived)),
-            record.arrival_clock.as_ref(),
+            run.record.arrival_clock.as_ref(),
             measuring_rate_hz,
         )
     });
+    let sensor_samples = ild_samples.len() + can_counters.len();
+    let sensor_errors = sensor_error_counts(
+        ild_samples
+            .iter()
+            .map(|sample| sample.value)
+            .chain(run.can_distances.iter().map(|&(_, value, _)| value)),
+    );
+    let record = &run.record;
     let period_s = record.period_s;
     // The recorded frame: after the lead-in, to the last period done.
     let frame = ScanFrame {
         start_s: record.lead_in_periods as f64 * period_s,
         length_s: record.periods_done.saturating_sub(record.lead_in_periods) as f64 * period_s,
     };
-    let mut unpaired = 0u64;
-    let mut in_lead_in = 0u64;
-    let mut missing_by_reason: BTreeMap<String, usize> = BTreeMap::new();
-    let samples: Vec<ScanSample> = counted
+    // A rig's sensor is on one of the two: its samples come in the order they were measured.
+    let samples = can_counters
         .iter()
-        .filter_map(|sample| {
-            let t_s = clock.instant_s(sample.counter);
-            if t_s < frame.start_s {
-                in_lead_in += 1;
-                return None;
-            }
-            let Some(angles) = record.angles.as_ref().and_then(|track| track.at(t_s)) else {
-                unpaired += 1;
-                return None;
-            };
-            let z_meas_mm = match sample.value {
-                IldValue::Distance(digital) => range.and_then(|r| r.digital_to_mm(digital)),
-                IldValue::Error(error) => {
-                    *missing_by_reason.entry(error.name().into()).or_default() += 1;
-                    None
-                }
-            };
-            Some(ScanSample {
-                t_s,
-                d_alpha_rad: angles.alpha,
-                d_beta_rad: angles.beta,
-                z_meas_mm,
-            })
-        })
-        .collect();
+        .zip(&run.can_distances)
+        .map(|(&counter, &(_, value, _))| CountedSample { counter, value })
+        .collect::<Vec<_>>()
+        .into_iter()
+        .chain(ild_samples);
+    let mut pairing = FramePairing::new(clock, frame.start_s, run.record.angles.take(), range);
+    let record = &run.record;
     let truth = scenario
         .truth_scene()
         .map(TrueScene::from_scene_file)
@@ -188,15 +163,21 @@ pub fn write(
         progressive_steps: scenario.imaging.progressive_steps,
         ..ImagingOptions::default()
     };
-    let paired = samples.len();
-    let imaging = if samples.iter().any(|s| s.z_meas_mm.is_some()) {
-        let mut imaging = image_samples(&samples, &options).context("imaging the scan")?;
+    // Paired as they are reconstructed (the filter keeps the samples' count as the bound the
+    // point cloud reserves).
+    let reconstruction = reconstruct_samples(
+        samples.filter_map(|sample| pairing.pair(sample.counter, sample.value)),
+        &options,
+    );
+    let imaging = if pairing.with_distance > 0 {
+        let reconstruction = reconstruction.context("imaging the scan")?;
+        let mut imaging = image_points(reconstruction, &options).context("imaging the scan")?;
         imaging.score_progressive(truth.as_ref(), frame);
         let report = write_outputs(
             &imaging,
             out_dir,
             PlyEncoding::BinaryLittleEndian,
-            &missing_by_reason,
+            &pairing.missing_by_reason,
         )
         .context("writing the imaging outputs")?;
         for (file, why) in &report.failed_files {
@@ -206,8 +187,6 @@ pub fn write(
     } else {
         None
     };
-    // The imaging holds what it needs: the paired samples go before the report is made.
-    drop(samples);
     let tracking = record.tracking.summary();
     failed.attempt(
         TRACKING_SVG,
@@ -272,10 +251,10 @@ pub fn write(
         "power": { "check": plan.power, "backoff": record.power_backoff },
         "trajectory": figures,
         "samples": {
-            "sensor_samples": counted.len(),
-            "paired": paired,
-            "in_the_lead_in": in_lead_in,
-            "outside_the_angle_record": unpaired,
+            "sensor_samples": sensor_samples,
+            "paired": pairing.paired,
+            "in_the_lead_in": pairing.in_lead_in,
+            "outside_the_angle_record": pairing.unpaired,
             "sensor_clock": clock,
         },
         "imaging": imaging,
@@ -284,7 +263,7 @@ pub fn write(
             "sensor": sensor_counters,
             "node_events": run.node_events,
         },
-        "faults": scenario.faults.is_active().then(|| fault_report(scenario, run, &sensor_counters)),
+        "faults": scenario.faults.is_active().then(|| fault_report(scenario, run, &sensor_counters, &sensor_errors)),
         "emulator": emulator,
         "outputs": { "failed": &failed },
     });
@@ -299,19 +278,25 @@ pub fn write(
     })
 }
 
+/// The sensor's error values by name.
+fn sensor_error_counts(values: impl Iterator<Item = IldValue>) -> BTreeMap<&'static str, u64> {
+    let mut errors = BTreeMap::new();
+    for value in values {
+        if let IldValue::Error(error) = value {
+            *errors.entry(error.name()).or_default() += 1;
+        }
+    }
+    errors
+}
+
 /// `report.json` `faults`: what was declared, what was injected (frames on each direction of
 /// the mirror's link, samples of the sensor), and what each side detected.
 fn fault_report(
     scenario: &Scenario,
     run: &RunData,
     sensor_counters: &SensorCounters,
+    sensor_errors: &BTreeMap<&'static str, u64>,
 ) -> serde_json::Value {
-    let mut sensor_errors: BTreeMap<&'static str, u64> = BTreeMap::new();
-    for sample in &run.sensor.0 {
-        if let IldValue::Error(error) = sample.value {
-            *sensor_errors.entry(error.name()).or_default() += 1;
-        }
-    }
     let summary = run
         .emulator_summary
         .as_ref()

@@ -3,7 +3,13 @@
 //! counter stands for, and the mirror angles at that instant are interpolated between the two
 //! angle readings around it. Arrival time plays no part, so pairing is deterministic.
 
+use std::collections::BTreeMap;
+
+use scanhil_protocol::ild::{IldValue, MeasuringRange};
 use scanhil_protocol::plant_units::SensingPair;
+
+use super::chunked::Chunked;
+use crate::imaging::reconstruct::ScanSample;
 
 /// The sensor's clock: its measuring rate and the instant of counter value 0 on the loop's
 /// time axis (loop time 0 is the start of control period 0).
@@ -20,6 +26,89 @@ impl SensorClock {
     #[must_use]
     pub fn instant_s(&self, counter: u64) -> f64 {
         self.counter_zero_s + counter as f64 / self.measuring_rate_hz
+    }
+}
+
+/// Pairs a scan's sensor samples, in the order they were measured, with the angles at their
+/// instants, and counts what could not be paired: samples measured before the frame (the
+/// lead-in), samples outside the angle record, and error values by name (a paired sample
+/// without a distance). Angle readings the samples have passed are freed as it goes.
+#[derive(Debug)]
+pub struct FramePairing {
+    clock: SensorClock,
+    frame_start_s: f64,
+    angles: Option<AngleTrack>,
+    range: Option<MeasuringRange>,
+    /// Samples measured before the frame.
+    pub in_lead_in: u64,
+    /// Samples outside the angle record.
+    pub unpaired: u64,
+    /// Samples paired.
+    pub paired: usize,
+    /// Paired samples with a distance.
+    pub with_distance: usize,
+    /// Paired samples without a distance, by the sensor's error name.
+    pub missing_by_reason: BTreeMap<String, usize>,
+}
+
+impl FramePairing {
+    /// Pairs by `clock` against `angles` the samples measured from `frame_start_s` on;
+    /// distances in mm by `range` (`None`: none).
+    #[must_use]
+    pub fn new(
+        clock: SensorClock,
+        frame_start_s: f64,
+        angles: Option<AngleTrack>,
+        range: Option<MeasuringRange>,
+    ) -> FramePairing {
+        FramePairing {
+            clock,
+            frame_start_s,
+            angles,
+            range,
+            in_lead_in: 0,
+            unpaired: 0,
+            paired: 0,
+            with_distance: 0,
+            missing_by_reason: BTreeMap::new(),
+        }
+    }
+
+    /// The next sample (its unwrapped counter and value) paired, or `None` (counted) when it
+    /// cannot be. Samples must come in the order they were measured: the angle readings
+    /// before this one's are freed.
+    pub fn pair(&mut self, counter: u64, value: IldValue) -> Option<ScanSample> {
+        let t_s = self.clock.instant_s(counter);
+        if t_s < self.frame_start_s {
+            self.in_lead_in += 1;
+            return None;
+        }
+        let Some(angles) = self.angles.as_mut().and_then(|track| {
+            let angles = track.at(t_s);
+            track.release_before(t_s);
+            angles
+        }) else {
+            self.unpaired += 1;
+            return None;
+        };
+        let z_meas_mm = match value {
+            IldValue::Distance(digital) => self.range.and_then(|r| r.digital_to_mm(digital)),
+            IldValue::Error(error) => {
+                *self
+                    .missing_by_reason
+                    .entry(error.name().into())
+                    .or_default() += 1;
+                None
+            }
+        };
+        self.paired += 1;
+        self.with_distance += usize::from(z_meas_mm.is_some());
+        Some(ScanSample {
+            t_s,
+            d_alpha_rad: angles.alpha,
+            d_beta_rad: angles.beta,
+            z_meas_mm,
+        })
     }
 }
 
@@ -233,27 +322,21 @@ impl CounterUnwrapper {
 }
 
 /// The mirror angle readings of a run on a regular time axis: reading `k` is the angle sampled
-/// at the end of control period `k`, loop time `(k + 1) * period_s`.
+/// at the end of control period `k`, loop time `(k + 1) * period_s`. Held in chunks: pairing,
+/// which reads it forward, frees the readings it has passed ([`AngleTrack::release_before`]).
 #[derive(Debug, Clone, Default)]
 pub struct AngleTrack {
     period_s: f64,
-    readings_rad: Vec<SensingPair>,
+    readings_rad: Chunked<SensingPair>,
 }
 
 impl AngleTrack {
     /// An empty track for a loop with period `period_s`.
     #[must_use]
     pub fn new(period_s: f64) -> AngleTrack {
-        AngleTrack::with_capacity(period_s, 0)
-    }
-
-    /// An empty track with room for `readings` readings (a run's planned periods: no
-    /// reallocation, whose old and new buffers would both be held at once, on the way).
-    #[must_use]
-    pub fn with_capacity(period_s: f64, readings: usize) -> AngleTrack {
         AngleTrack {
             period_s,
-            readings_rad: Vec::with_capacity(readings),
+            readings_rad: Chunked::new(),
         }
     }
 
@@ -268,7 +351,7 @@ impl AngleTrack {
         self.period_s
     }
 
-    /// Number of readings.
+    /// Number of readings (released ones included).
     #[must_use]
     pub fn len(&self) -> usize {
         self.readings_rad.len()
@@ -280,10 +363,13 @@ impl AngleTrack {
         self.readings_rad.is_empty()
     }
 
-    /// All readings, in order.
-    #[must_use]
-    pub fn readings_rad(&self) -> &[SensingPair] {
-        &self.readings_rad
+    /// Frees readings no time from `t_s` on needs (whole chunks before it); [`AngleTrack::at`]
+    /// is `None` before them afterwards.
+    pub fn release_before(&mut self, t_s: f64) {
+        let position = t_s / self.period_s - 1.0;
+        if position.is_finite() && position >= 1.0 {
+            self.readings_rad.release_before(position.floor() as usize);
+        }
     }
 
     /// The angles at loop time `t_s`, linearly interpolated between the readings around it;
@@ -310,6 +396,8 @@ impl AngleTrack {
 
 #[cfg(test)]
 mod tests {
+    use scanhil_protocol::ild::IldError;
+
     use super::*;
 
     #[test]
@@ -338,6 +426,97 @@ mod tests {
         assert_eq!(track.at(1.0).map(|p| p.alpha), Some(2.0));
         assert!(track.at(0.25).is_none());
         assert!(track.at(1.25).is_none());
+    }
+
+    /// A track of `n` readings at 1 kHz, reading `k` given by `reading(k)`.
+    fn track_of(n: u32, reading: impl Fn(f64) -> SensingPair) -> AngleTrack {
+        let mut track = AngleTrack::new(1e-3);
+        for k in 0..n {
+            track.push(reading(f64::from(k)));
+        }
+        track
+    }
+
+    #[test]
+    fn released_readings_are_only_those_before_the_time_asked_for() {
+        let mut track = track_of(200_000, |k| SensingPair { alpha: k, beta: -k });
+        // Between readings 150 000 and 150 001 (loop times 150.001 and 150.002 s).
+        let t_s = 150.0015;
+        let before = track.at(t_s).expect("inside the track");
+        track.release_before(t_s);
+        assert_eq!(track.at(t_s), Some(before));
+        assert_eq!(before.alpha, 150_000.5);
+        assert!(track.at(t_s + 10.0).is_some());
+        assert!(track.at(1.0).is_none(), "the first chunks are freed");
+        assert_eq!(track.len(), 200_000);
+    }
+
+    #[test]
+    fn pairing_in_order_frees_angles_without_changing_a_pair() {
+        // 200 000 readings at 1 kHz, a sample every 0.7 periods from counter 0 at -0.1 s:
+        // before the frame (5 s), inside, and past the last reading; every 97th an error.
+        let period_s = 1e-3;
+        let track = track_of(200_000, |k| SensingPair {
+            alpha: (k * 1e-3).sin(),
+            beta: k,
+        });
+        let clock = SensorClock {
+            measuring_rate_hz: 1.0 / (0.7 * period_s),
+            counter_zero_s: -0.1,
+        };
+        let range = MeasuringRange {
+            start_mm: 100.0,
+            span_mm: 50.0,
+        };
+        let value = |counter: u64| {
+            if counter.is_multiple_of(97) {
+                IldValue::Error(IldError::NoPeak)
+            } else {
+                IldValue::Distance(1000 + (counter % 5000) as u32)
+            }
+        };
+        let mut pairing = FramePairing::new(clock, 5.0, Some(track.clone()), Some(range));
+        let mut paired = 0;
+        for counter in 0..300_000u64 {
+            let got = pairing.pair(counter, value(counter));
+            let t_s = clock.instant_s(counter);
+            let expected = (t_s >= 5.0)
+                .then(|| track.at(t_s))
+                .flatten()
+                .map(|angles| (angles.alpha, angles.beta));
+            assert_eq!(
+                got.map(|s| (s.d_alpha_rad, s.d_beta_rad)),
+                expected,
+                "{counter}"
+            );
+            if let Some(sample) = got {
+                paired += 1;
+                assert_eq!(sample.t_s, t_s);
+                let distance = match value(counter) {
+                    IldValue::Distance(digital) => range.digital_to_mm(digital),
+                    IldValue::Error(_) => None,
+                };
+                assert_eq!(sample.z_meas_mm, distance);
+            }
+        }
+        assert_eq!(pairing.paired, paired);
+        assert_eq!(pairing.in_lead_in, 7286, "5.1 s / 0.7 ms");
+        assert_eq!(
+            pairing.in_lead_in + pairing.unpaired + paired as u64,
+            300_000
+        );
+        assert_eq!(
+            pairing.missing_by_reason["no_peak"],
+            paired - pairing.with_distance
+        );
+        let held = pairing
+            .angles
+            .as_ref()
+            .expect("the track")
+            .readings_rad
+            .iter()
+            .count();
+        assert!(held < 2 * (1 << 16), "angles passed are freed: {held} held");
     }
 
     #[test]

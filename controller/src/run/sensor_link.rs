@@ -14,6 +14,7 @@ use scanhil_protocol::link::ild::{IldCounters, IldCycle, IldCycleAssembler, IldL
 use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{ByteCapture, LinkError, LinkUri, PtyPair};
 
+use super::chunked::Chunked;
 use super::host_loop::LoopError;
 use super::pairing::{ArrivalBound, CounterUnwrapper};
 
@@ -75,7 +76,7 @@ pub struct IldSampleDecoder {
 #[derive(Debug)]
 struct SampleLog {
     unwrapper: CounterUnwrapper,
-    samples: Vec<CountedSample>,
+    samples: Chunked<CountedSample>,
     arrivals: Option<ArrivalBound>,
 }
 
@@ -109,14 +110,6 @@ impl SensorLink {
         match self {
             SensorLink::Elsewhere => None,
             SensorLink::Ild(stream) => Some(&mut stream.link),
-        }
-    }
-
-    /// Makes room for `samples` samples up front (a run's planned count), so the log is not
-    /// reallocated, old and new buffer held at once, as it grows.
-    pub fn reserve_samples(&mut self, samples: usize) {
-        if let SensorLink::Ild(stream) = self {
-            stream.log.samples.reserve(samples);
         }
     }
 
@@ -209,9 +202,9 @@ impl SensorLink {
 
     /// The samples and counters, handed over without a copy; the link's log is empty
     /// afterwards.
-    pub fn take_samples(&mut self) -> (Vec<CountedSample>, SensorCounters) {
+    pub fn take_samples(&mut self) -> (Chunked<CountedSample>, SensorCounters) {
         match self {
-            SensorLink::Elsewhere => (Vec::new(), SensorCounters::default()),
+            SensorLink::Elsewhere => (Chunked::new(), SensorCounters::default()),
             SensorLink::Ild(stream) => {
                 let counters = stream.log.counters(stream.link.counters());
                 (std::mem::take(&mut stream.log.samples), counters)
@@ -240,10 +233,11 @@ impl IldSampleDecoder {
         }
     }
 
-    /// The samples and counters so far.
+    /// The samples and counters, handed over without a copy.
     #[must_use]
-    pub fn snapshot(&self) -> (Vec<CountedSample>, SensorCounters) {
-        self.log.snapshot(self.assembler.counters())
+    pub fn finish(self) -> (Chunked<CountedSample>, SensorCounters) {
+        let counters = self.log.counters(self.assembler.counters());
+        (self.log.samples, counters)
     }
 }
 
@@ -257,7 +251,7 @@ impl SampleLog {
     fn new() -> SampleLog {
         SampleLog {
             unwrapper: CounterUnwrapper::new(ILD_COUNTER_MODULUS),
-            samples: Vec::new(),
+            samples: Chunked::new(),
             arrivals: None,
         }
     }
@@ -278,7 +272,7 @@ impl SampleLog {
 
     /// The samples, and the counters with the line's.
     fn snapshot(&self, line: &IldCounters) -> (Vec<CountedSample>, SensorCounters) {
-        (self.samples.clone(), self.counters(line))
+        (self.samples.iter().copied().collect(), self.counters(line))
     }
 
     /// The counters, with the line's.
