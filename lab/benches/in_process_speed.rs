@@ -19,6 +19,8 @@
 //! Run: `cargo bench -p scanhil-lab --bench in_process_speed [-- CASE...]` (default: every
 //! case).
 
+mod support;
+
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -26,6 +28,7 @@ use scanhil_controller::run::lead_in::LeadIn;
 use scanhil_controller::run::scenario::Scenario;
 use scanhil_emulator::serve::load_plant;
 use scanhil_protocol::plant_units::ActuatorPair;
+use support::root;
 
 /// Runs per case (median reported).
 const RUNS: usize = 5;
@@ -56,10 +59,6 @@ const CASES: [Case; 3] = [
         single_ray: false,
     },
 ];
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
 
 /// The shipped Duplo scene changed as `case` says, written into `dir`.
 fn scene_file(case: &Case, dir: &Path) -> anyhow::Result<PathBuf> {
@@ -173,13 +172,9 @@ fn main() -> anyhow::Result<()> {
             "loop_over_plant_alone_cpu": cpu_s / plant_cpu_s,
         }));
     }
-    let json = serde_json::to_string_pretty(&serde_json::json!({ "runs": RUNS, "cases": rows }))?;
-    println!("{json}");
-    let target =
-        std::env::var_os("CARGO_TARGET_DIR").map_or_else(|| root().join("target"), PathBuf::from);
-    std::fs::create_dir_all(&target)?;
-    let out = target.join("in_process_speed.json");
-    std::fs::write(&out, &json)?;
-    eprintln!("written to {}", out.display());
+    support::publish(
+        "in_process_speed",
+        &serde_json::json!({ "runs": RUNS, "cases": rows }),
+    )?;
     Ok(())
 }

@@ -78,23 +78,20 @@ pub struct WireCounts {
 
 impl InProcessOutcome {
     /// Writes the output folder of `scanhil scan` (report, point cloud, height map, plots)
-    /// into `out_dir`; returns how the run ended. The outcome keeps its sensor samples and
-    /// angle record for the caller (the writer consumes the copies it is given: in-process
-    /// runs are short).
+    /// into `out_dir`; returns how the run ended. The sensor samples and the angle record are
+    /// consumed (as `scanhil scan` does: the frame is never held as samples and points at
+    /// once); what else the run produced stays.
     ///
     /// # Errors
     /// A file that cannot be written (all of them named, after the others were written).
     pub fn write(&mut self, out_dir: &Path) -> anyhow::Result<ScanEnd> {
-        let kept = (self.run.sensor.0.clone(), self.run.record.angles.clone());
         let result = output::write(
             &self.scenario,
             &self.plan,
             &mut self.run,
             self.sensor_clock,
             out_dir,
-        );
-        (self.run.sensor.0, self.run.record.angles) = kept;
-        let result = result?;
+        )?;
         anyhow::ensure!(
             result.failed_outputs.is_empty(),
             "{}: outputs not written: {}",

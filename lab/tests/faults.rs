@@ -295,7 +295,13 @@ fn the_sensor_losing_its_peak_is_sent_and_seen_as_the_ild_error_values() {
     .unwrap();
     scenario.check().unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let outcome = run(&scenario, Some(dir.path())).unwrap();
+    // The samples are taken before the output folder is written (writing consumes them).
+    let mut outcome = run(&scenario, None).unwrap();
+    let held = |samples: &scanhil_controller::run::chunked::Chunked<_>| {
+        samples.iter().copied().collect::<Vec<_>>()
+    };
+    let faulty_samples = held(&outcome.run.sensor.0);
+    outcome.end = outcome.write(dir.path()).unwrap();
     let report: Value =
         serde_json::from_str(&std::fs::read_to_string(dir.path().join("report.json")).unwrap())
             .unwrap();
@@ -325,13 +331,7 @@ fn the_sensor_losing_its_peak_is_sent_and_seen_as_the_ild_error_values() {
             .filter(|s| matches!(s.value, scanhil_protocol::ild::IldValue::Error(_)))
             .count() as u64
     };
-    let held = |samples: &scanhil_controller::run::chunked::Chunked<_>| {
-        samples.iter().copied().collect::<Vec<_>>()
-    };
-    let (faulty_samples, clean_samples) = (
-        &held(&outcome.run.sensor.0)[..],
-        &held(&clean.run.sensor.0)[..],
-    );
+    let (faulty_samples, clean_samples) = (&faulty_samples[..], &held(&clean.run.sensor.0)[..]);
     assert_eq!(faulty_samples.len(), clean_samples.len());
     let is_error = |value: &scanhil_protocol::ild::IldValue| {
         matches!(value, scanhil_protocol::ild::IldValue::Error(_))
