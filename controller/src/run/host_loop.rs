@@ -86,7 +86,8 @@ pub enum LoopError {
 }
 
 /// What a loop run produced. Its memory does not grow with the run's length, except for the
-/// angle history kept to pair sensor samples with ([`Self::keeping_angles`]).
+/// frame's angle history kept to pair sensor samples with ([`Self::keeping_angles`]; the
+/// lead-in's readings are freed as the loop passes them).
 #[derive(Debug)]
 pub struct LoopRecord {
     /// The control period, s.
@@ -185,6 +186,9 @@ impl LoopRecord {
         };
         if let Some(track) = &mut self.angles {
             track.push(angles);
+            // Samples are paired only from the frame's start on: the lead-in's readings go
+            // as the loop passes them.
+            track.release_before(self.lead_in_periods as f64 * self.period_s);
         }
         self.tracking.record(reference, angles);
         self.periods_done = k + 1;
@@ -556,4 +560,50 @@ fn stamped(message: &Message, t_s: f64) -> Result<StampedFrame, LoopError> {
         .encode()
         .map_err(|error| LoopError::Encode(error.to_string()))?;
     Ok(StampedFrame { frame, t_s })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_lead_ins_angle_readings_go_as_the_loop_passes_them() {
+        let trajectory: Trajectory = serde_json::from_value(serde_json::json!({
+            "kind": "lissajous", "alpha_hz": 52.0, "beta_hz": 27.0
+        }))
+        .expect("a trajectory");
+        let period_s = 5e-5;
+        let (lead_in, frame) = (300_000u64, 1000u64);
+        let mut record = LoopRecord::new(period_s, lead_in + frame).with_lead_in(lead_in);
+        for k in 0..lead_in + frame {
+            let angle = k as f64 * 1e-9;
+            record.push_reading(
+                &trajectory,
+                k,
+                SensingPair {
+                    alpha: angle,
+                    beta: -angle,
+                },
+            );
+        }
+        let track = record.angles.as_ref().expect("angles kept by default");
+        assert_eq!(track.len() as u64, lead_in + frame);
+        let frame_start_s = lead_in as f64 * period_s;
+        // Every reading the frame's samples need is there; the lead-in's early ones are gone.
+        for t_s in [
+            frame_start_s,
+            frame_start_s + 0.7 * period_s,
+            (lead_in + frame) as f64 * period_s,
+        ] {
+            assert!(track.at(t_s).is_some(), "{t_s}");
+        }
+        assert_eq!(
+            track.at(frame_start_s).map(|a| a.alpha),
+            Some((lead_in - 1) as f64 * 1e-9)
+        );
+        assert!(
+            track.at(1.0).is_none(),
+            "the lead-in's first readings are freed"
+        );
+    }
 }
