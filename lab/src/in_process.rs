@@ -229,7 +229,7 @@ pub fn run_probed(
             }
             HostAction::AwaitReading { period, t_s } => match transport.host_receives(t_s)? {
                 Some(frame) => {
-                    if let Heard::Reading(k) = host.on_frame(&frame, tokio::time::Instant::now()) {
+                    if let Heard::Reading(k) = host.on_frame(&frame, transport.arrival) {
                         probe(k, host.latest_reading());
                     }
                 }
@@ -247,7 +247,7 @@ pub fn run_probed(
             },
             HostAction::AwaitNodeReady { t_s } => match transport.host_receives(t_s)? {
                 Some(frame) => {
-                    host.on_frame(&frame, tokio::time::Instant::now());
+                    host.on_frame(&frame, transport.arrival);
                 }
                 None => host.on_error(LoopError::LinkTimeout {
                     link: LINK_NAME.to_owned(),
@@ -321,6 +321,9 @@ struct Transport {
     /// The node answered the end of the run: it takes no more frames.
     node_finished: bool,
     clock: VirtualClock,
+    /// What frames and cycles are stamped as arriving at: in process there is no wall-clock
+    /// arrival (loop time is virtual and the sensor declares its clock), so the run's start.
+    arrival: tokio::time::Instant,
     capture: Option<CanCapture>,
     sensor: Option<MemorySensor>,
     /// Injected frame faults between the host and the node.
@@ -372,6 +375,7 @@ impl Transport {
             None
         };
         Ok(Transport {
+            arrival: tokio::time::Instant::now(),
             to_host: std::collections::VecDeque::new(),
             node_finished: false,
             clock,
@@ -473,7 +477,7 @@ impl Transport {
                     .write_all(&bytes)
                     .context("recording the ILD stream")?;
             }
-            sensor.decoder.push(&bytes, tokio::time::Instant::now());
+            sensor.decoder.push(&bytes, self.arrival);
         }
         Ok(())
     }
