@@ -7,10 +7,22 @@
 //!
 //! Pure arithmetic on durations the caller measured; nothing here reads a clock.
 
-/// Collects measured periods (or answer latencies) and counts overruns.
-#[derive(Debug, Clone, Default)]
+/// The longest value the percentiles resolve, ns (an hour; longer ones count as an hour there).
+const HISTOGRAM_MAX_NS: u64 = 3_600_000_000_000;
+
+/// Collects measured periods (or answer latencies) against a nominal period and counts
+/// overruns, in memory that does not grow with the run: the count, the extremes and the
+/// values above the nominal period are kept exactly, the median and the 99th percentile come
+/// from a histogram of nanoseconds with 3 significant digits ([`hdrhistogram`]: within 0.1 %,
+/// under 300 KB whatever the run's length).
+#[derive(Debug, Clone)]
 pub struct PeriodRecorder {
-    samples_s: Vec<f64>,
+    nominal_s: f64,
+    histogram_ns: hdrhistogram::Histogram<u64>,
+    periods: u64,
+    min_s: f64,
+    max_s: f64,
+    above_nominal: u64,
     overruns: u64,
 }
 
@@ -39,20 +51,35 @@ pub struct PeriodStats {
 }
 
 impl PeriodRecorder {
-    /// An empty recorder with room for `capacity` periods.
+    /// An empty recorder of periods (or latencies) against `nominal_s`.
     #[must_use]
-    pub fn with_capacity(capacity: usize) -> PeriodRecorder {
+    pub fn new(nominal_s: f64) -> PeriodRecorder {
         PeriodRecorder {
-            samples_s: Vec::with_capacity(capacity),
+            nominal_s,
+            histogram_ns: hdrhistogram::Histogram::new_with_bounds(1, HISTOGRAM_MAX_NS, 3)
+                .expect("bounds and 3 significant digits that hdrhistogram accepts"),
+            periods: 0,
+            min_s: f64::INFINITY,
+            max_s: f64::NEG_INFINITY,
+            above_nominal: 0,
             overruns: 0,
         }
     }
 
     /// Records one measured period (or latency), in seconds. Non-finite values are ignored.
     pub fn record(&mut self, measured_s: f64) {
-        if measured_s.is_finite() {
-            self.samples_s.push(measured_s);
+        if !measured_s.is_finite() {
+            return;
         }
+        self.periods += 1;
+        self.min_s = self.min_s.min(measured_s);
+        self.max_s = self.max_s.max(measured_s);
+        self.above_nominal += u64::from(measured_s > self.nominal_s);
+        // Whole nanoseconds within the histogram's range (the extremes above stay exact).
+        let ns = (measured_s * 1e9)
+            .round()
+            .clamp(1.0, HISTOGRAM_MAX_NS as f64) as u64;
+        self.histogram_ns.saturating_record(ns);
     }
 
     /// Counts one missed deadline.
@@ -60,27 +87,25 @@ impl PeriodRecorder {
         self.overruns += 1;
     }
 
-    /// The summary against a nominal period; `None` when nothing was recorded.
+    /// The summary; `None` when nothing was recorded. The median and the 99th percentile are
+    /// the histogram's (nearest rank, within 0.1 %), kept within the exact extremes.
     #[must_use]
-    pub fn stats(&self, nominal_s: f64) -> Option<PeriodStats> {
-        if self.samples_s.is_empty() {
+    pub fn stats(&self) -> Option<PeriodStats> {
+        if self.periods == 0 {
             return None;
         }
-        let mut sorted = self.samples_s.clone();
-        sorted.sort_by(f64::total_cmp);
-        let rank = |q: f64| {
-            let index = (q * sorted.len() as f64).ceil() as usize;
-            sorted[index.clamp(1, sorted.len()) - 1]
+        let quantile_s = |q: f64| {
+            (self.histogram_ns.value_at_quantile(q) as f64 * 1e-9).clamp(self.min_s, self.max_s)
         };
         Some(PeriodStats {
-            periods: sorted.len() as u64,
-            nominal_s,
-            min_s: sorted[0],
-            median_s: rank(0.5),
-            p99_s: rank(0.99),
-            max_s: sorted[sorted.len() - 1],
+            periods: self.periods,
+            nominal_s: self.nominal_s,
+            min_s: self.min_s,
+            median_s: quantile_s(0.5),
+            p99_s: quantile_s(0.99),
+            max_s: self.max_s,
             overruns: self.overruns,
-            above_nominal: sorted.iter().filter(|&&v| v > nominal_s).count() as u64,
+            above_nominal: self.above_nominal,
         })
     }
 }
@@ -138,9 +163,9 @@ pub fn attribute_misses(
     period_s: f64,
     host_latency_s: impl Fn(u64) -> Option<f64>,
 ) -> MissAttribution {
-    let mut node = (SideMisses::default(), PeriodRecorder::default());
-    let mut host = (SideMisses::default(), PeriodRecorder::default());
-    let mut link = (SideMisses::default(), PeriodRecorder::default());
+    let mut node = (SideMisses::default(), PeriodRecorder::new(0.0));
+    let mut host = (SideMisses::default(), PeriodRecorder::new(0.0));
+    let mut link = (SideMisses::default(), PeriodRecorder::new(0.0));
     for miss in misses {
         let Some(reading) = miss.period.checked_sub(1) else {
             continue;
@@ -161,7 +186,7 @@ pub fn attribute_misses(
         }
     }
     let summary = |(mut side, delays): (SideMisses, PeriodRecorder)| {
-        if let Some(stats) = delays.stats(0.0) {
+        if let Some(stats) = delays.stats() {
             side.worst_s = Some(stats.max_s);
             side.p99_s = Some(stats.p99_s);
         }
@@ -230,22 +255,53 @@ mod tests {
 
     #[test]
     fn nearest_rank_percentiles_of_one_to_hundred() {
-        let mut recorder = PeriodRecorder::default();
+        let mut recorder = PeriodRecorder::new(50.0);
         for i in (1..=100).rev() {
             recorder.record(f64::from(i));
         }
         recorder.record(f64::NAN);
         recorder.overrun();
-        let stats = recorder.stats(50.0).expect("samples were recorded");
+        let stats = recorder.stats().expect("samples were recorded");
         assert_eq!(stats.periods, 100);
-        assert_eq!((stats.min_s, stats.median_s), (1.0, 50.0));
-        assert_eq!((stats.p99_s, stats.max_s), (99.0, 100.0));
+        assert_eq!(
+            (stats.min_s, stats.max_s),
+            (1.0, 100.0),
+            "the extremes are exact"
+        );
+        let within = |got: f64, want: f64| (got - want).abs() <= 1e-3 * want;
+        assert!(within(stats.median_s, 50.0), "{}", stats.median_s);
+        assert!(within(stats.p99_s, 99.0), "{}", stats.p99_s);
         assert_eq!(stats.overruns, 1);
         assert_eq!(stats.above_nominal, 50, "51..=100 are above 50");
     }
 
     #[test]
+    fn percentiles_of_a_long_run_of_microseconds_stay_within_a_thousandth() {
+        // Two million 20 kHz periods spread over 40-60 us with a tail: memory stays the
+        // histogram's, and the percentiles agree with the sorted values to 0.1 %.
+        let mut recorder = PeriodRecorder::new(50e-6);
+        let mut values: Vec<f64> = (0..2_000_000u64)
+            .map(|i| 40e-6 + 20e-6 * ((i * 7919) % 10_007) as f64 / 10_007.0)
+            .chain([3e-3, 8e-3])
+            .collect();
+        for &value in &values {
+            recorder.record(value);
+        }
+        values.sort_by(f64::total_cmp);
+        let rank = |q: f64| values[(q * values.len() as f64).ceil() as usize - 1];
+        let stats = recorder.stats().expect("recorded");
+        for (got, want) in [(stats.median_s, rank(0.5)), (stats.p99_s, rank(0.99))] {
+            assert!((got - want).abs() <= 1e-3 * want, "{got} against {want}");
+        }
+        assert_eq!(stats.max_s, 8e-3);
+        assert_eq!(
+            stats.above_nominal,
+            values.iter().filter(|&&v| v > 50e-6).count() as u64
+        );
+    }
+
+    #[test]
     fn nothing_recorded_gives_no_stats() {
-        assert!(PeriodRecorder::default().stats(1.0).is_none());
+        assert!(PeriodRecorder::new(1.0).stats().is_none());
     }
 }

@@ -167,7 +167,7 @@ pub fn wakeup_probe(period: Duration, duration: Duration) -> Result<Option<Perio
     } else {
         duration.as_nanos() / period.as_nanos()
     };
-    let mut latencies = PeriodRecorder::with_capacity(wakeups.min(1 << 22) as usize);
+    let mut latencies = PeriodRecorder::new(period.as_secs_f64());
     let start = Duration::from(clock_gettime(ClockId::CLOCK_MONOTONIC)?);
     for k in 1..=wakeups {
         let deadline = start + period.saturating_mul(u32::try_from(k).unwrap_or(u32::MAX));
@@ -190,7 +190,7 @@ pub fn wakeup_probe(period: Duration, duration: Duration) -> Result<Option<Perio
             latencies.overrun();
         }
     }
-    Ok(latencies.stats(period.as_secs_f64()))
+    Ok(latencies.stats())
 }
 
 #[cfg(test)]

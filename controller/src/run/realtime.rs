@@ -186,8 +186,8 @@ pub async fn run(
     let busy_poll = scheduling.in_effect.busy_poll;
     let period_s = controller.period_s();
     let periods = record.periods_planned;
-    let mut intervals = PeriodRecorder::with_capacity(periods as usize);
-    let mut latencies = PeriodRecorder::with_capacity(periods as usize);
+    let mut intervals = PeriodRecorder::new(period_s);
+    let mut latencies = PeriodRecorder::new(period_s);
     let mut latency_by_reading_s = vec![f64::NAN; periods as usize];
     let mut missed_readings = 0u64;
     let mut last_arrival: Option<Instant> = None;
@@ -267,8 +267,8 @@ pub async fn run(
     }
     record.saturated_periods = controller.saturated_periods();
     record.controller_timing = Some(ControllerTiming {
-        reading_interval: intervals.stats(period_s),
-        answer_latency: latencies.stats(period_s),
+        reading_interval: intervals.stats(),
+        answer_latency: latencies.stats(),
         missed_readings,
         scheduling,
         latency_by_reading_s,

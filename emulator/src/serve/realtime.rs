@@ -65,9 +65,8 @@ pub async fn run(
     let total_periods = config
         .duration_s
         .map(|d| (d / node.plant().period_s()).round() as u64);
-    let capacity = total_periods.unwrap_or(0).min(1 << 24) as usize;
-    let mut recorder = PeriodRecorder::with_capacity(capacity);
-    let mut lateness = PeriodRecorder::with_capacity(capacity);
+    let mut recorder = PeriodRecorder::new(period.as_secs_f64());
+    let mut lateness = PeriodRecorder::new(period.as_secs_f64());
     let mut misses: Vec<MissedDeadline> = Vec::new();
     let mut misses_not_listed = 0u64;
     // How late the previous tick's reading went out after its period start (`None`: dropped).
@@ -226,7 +225,7 @@ pub async fn run(
         let report = end_on_link_error(node, links, link_error).await?;
         (outcome, ended_by, error) = (report.outcome, report.ended_by, report.error);
     }
-    let stats = recorder.stats(period.as_secs_f64());
+    let stats = recorder.stats();
     let stale = node.counters().stale_periods;
     let deadline_held =
         stats.is_some_and(|s| s.overruns == 0) && stale <= 1 && dropped_periods == 0;
@@ -235,7 +234,7 @@ pub async fn run(
         ended_by,
         timing: serde_json::json!({
             "period_jitter": stats,
-            "tick_lateness": lateness.stats(period.as_secs_f64()),
+            "tick_lateness": lateness.stats(),
             "stale_command_periods": stale,
             "missed_deadlines": misses,
             "missed_deadlines_not_listed": misses_not_listed,
