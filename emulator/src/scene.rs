@@ -20,6 +20,7 @@ use crate::mirror::MirrorConfig;
 use crate::optics::OpticsConfig;
 use crate::power::PowerLimitConfig;
 use crate::sensor::SensorConfig;
+use scanhil_scene::json_file::{self, JsonFileError};
 use scanhil_scene::surface::SurfaceConfig;
 
 /// The paper's control rate, in Hz (Ta = 50 us).
@@ -154,26 +155,10 @@ fn default_control_rate_hz() -> f64 {
 /// Why a scene could not be loaded.
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
-    /// The file could not be read.
-    #[error("cannot read scene {path}: {source}")]
-    Io {
-        /// The scene file.
-        path: PathBuf,
-        /// The I/O error.
-        source: std::io::Error,
-    },
-    /// The JSON is malformed or does not match the scene format.
-    #[error("scene {path}: line {line}, column {column}: {message}")]
-    Parse {
-        /// The scene file.
-        path: PathBuf,
-        /// 1-based line of the error.
-        line: usize,
-        /// 1-based column of the error.
-        column: usize,
-        /// What serde found wrong.
-        message: String,
-    },
+    /// The file could not be read, or its JSON is malformed or does not match the scene
+    /// format (file, line and column).
+    #[error(transparent)]
+    File(#[from] JsonFileError),
     /// A field has a value the plant cannot use.
     #[error("scene {path}: field `{field}`: {reason}")]
     Invalid {
@@ -188,23 +173,20 @@ pub enum SceneError {
 
 impl Scene {
     /// Reads, parses and validates a scene file.
+    ///
+    /// # Errors
+    /// [`SceneError`] naming the file (and line and column for a parse error).
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        Scene::from_json_str(&text, path)
+        Scene::from_json_str(&json_file::read_text(path, "scene")?, path)
     }
 
     /// Parses and validates scene JSON; `origin` names it in errors and sets the base
     /// directory for relative paths.
+    ///
+    /// # Errors
+    /// [`SceneError::File`] (parse) or [`SceneError::Invalid`].
     pub fn from_json_str(text: &str, origin: &Path) -> Result<Scene, SceneError> {
-        let mut scene: Scene = serde_json::from_str(text).map_err(|e| SceneError::Parse {
-            path: origin.to_path_buf(),
-            line: e.line(),
-            column: e.column(),
-            message: e.to_string(),
-        })?;
+        let mut scene: Scene = json_file::parse(text, origin)?;
         scene.base_dir = origin.parent().map(Path::to_path_buf);
         scene
             .validate()

@@ -9,6 +9,7 @@ use scanhil_emulator::scene::{Part, Scene, SceneError};
 use scanhil_protocol::plant_units::{
     ActuatorPair, RAD_PER_OUTPUT_UNIT, SensingPair, actuator_from_sensing,
 };
+use scanhil_scene::json_file::JsonFileError;
 
 fn scene(json: &str) -> Scene {
     Scene::from_json_str(json, Path::new("test-scene.json")).expect("test scene is valid")
@@ -154,19 +155,24 @@ fn same_seed_same_run_other_seed_other_noise() {
 
 #[test]
 fn scene_errors_name_the_file_and_what_is_wrong() {
-    match scene_err("{\n  \"name\": \"x\",\n  \"parts\": [],\n  \"colour\": 1\n}") {
-        SceneError::Parse {
+    let unknown_field = scene_err("{\n  \"name\": \"x\",\n  \"parts\": [],\n  \"colour\": 1\n}");
+    match &unknown_field {
+        SceneError::File(JsonFileError::Parse {
             path,
             line,
+            column,
             message,
-            ..
-        } => {
-            assert_eq!(path, PathBuf::from("bad.json"));
-            assert_eq!(line, 4);
+        }) => {
+            assert_eq!(path, &PathBuf::from("bad.json"));
+            assert_eq!((*line, *column), (4, 10));
             assert!(message.contains("colour"), "{message}");
         }
         other => panic!("{other}"),
     }
+    assert!(
+        unknown_field.to_string().starts_with("bad.json:4:10: "),
+        "file, line and column lead the message: {unknown_field}"
+    );
     match scene_err(r#"{"name": "x", "parts": ["shading"]}"#) {
         SceneError::Invalid { field, reason, .. } => {
             assert_eq!(field, "parts");
@@ -182,12 +188,14 @@ fn scene_errors_name_the_file_and_what_is_wrong() {
         other => panic!("{other}"),
     }
     match scene_err(r#"{"name": "x", "parts": ["bogus"]}"#) {
-        SceneError::Parse { message, .. } => assert!(message.contains("bogus"), "{message}"),
+        SceneError::File(JsonFileError::Parse { message, .. }) => {
+            assert!(message.contains("bogus"), "{message}");
+        }
         other => panic!("{other}"),
     }
     let missing = Scene::load(Path::new("/nonexistent/scene.json")).unwrap_err();
     assert!(
-        matches!(missing, SceneError::Io { .. })
+        matches!(missing, SceneError::File(JsonFileError::Io { .. }))
             && missing.to_string().contains("/nonexistent/scene.json")
     );
 }

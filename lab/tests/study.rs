@@ -164,10 +164,59 @@ fn study_files_with_bad_keys_or_shapes_are_refused_naming_the_file() {
             ),
         )
         .expect("writing");
-        let error = format!("{:#}", Study::load(&path).expect_err("refused"));
+        let error = load_refusal(&path);
         assert!(
             error.contains("bad.json") && error.contains(expected),
             "{error}"
         );
     }
+}
+
+/// The whole message (causes too) of `Study::load`'s refusal of `path`.
+fn load_refusal(path: &Path) -> String {
+    format!("{:#}", Study::load(path).expect_err("refused"))
+}
+
+#[test]
+fn unreadable_or_malformed_study_and_base_files_are_refused_naming_file_line_and_column() {
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let missing = dir.path().join("missing.json");
+    let malformed = dir.path().join("malformed.json");
+    std::fs::write(&malformed, "{\n  \"name\": \"t\",\n  \"scenario\": 7\n}").expect("writing");
+    for (error, start) in [
+        (
+            load_refusal(&missing),
+            format!("cannot read study {}: ", missing.display()),
+        ),
+        (
+            load_refusal(&malformed),
+            format!("{}:3:15: invalid type", malformed.display()),
+        ),
+    ] {
+        assert!(error.starts_with(&start), "{error}");
+    }
+
+    // A study that changes the scene of a base scenario whose scene is not JSON.
+    let scene = dir.path().join("scene.json");
+    std::fs::write(&scene, "{\n  \"name\": \"s\",\n  oops\n}").expect("writing");
+    let base = dir.path().join("base.json");
+    std::fs::write(&base, r#"{"scene": "scene.json"}"#).expect("writing");
+    let study = dir.path().join("study.json");
+    std::fs::write(
+        &study,
+        r#"{ "name": "t", "scenario": "base.json", "list": [{ "scene.seed": 1 }] }"#,
+    )
+    .expect("writing");
+    let study = Study::load(&study).expect("the study loads");
+    let error = format!(
+        "{:#}",
+        study
+            .write_variants(&dir.path().join("out"))
+            .expect_err("refused")
+    );
+    let scene = scene.canonicalize().expect("the scene's absolute path");
+    assert!(
+        error.contains(&format!("{}:3:3: ", scene.display())),
+        "{error}"
+    );
 }

@@ -151,15 +151,6 @@ impl MirrorLink {
         Ok(None)
     }
 
-    /// Real time: answers period `k` with its coil command.
-    ///
-    /// # Errors
-    /// Link errors.
-    pub async fn send_command(&mut self, k: u64, command_a: ActuatorPair) -> Result<(), LoopError> {
-        let frame = coil_command_frame(k, command_a, (k + 1) as f64 * self.period_s)?;
-        self.send_period(k, &[frame]).await
-    }
-
     /// Sends malformed input for period `k`: a Step and a CoilCommand with short payloads.
     /// Returns what was sent.
     ///
@@ -209,14 +200,16 @@ impl MirrorLink {
         }
     }
 
-    /// After a failure: commands zero current (best effort; the link may be gone, or full
-    /// because the node stopped reading: the write is given up after [`STOP_SEND_ALLOWANCE`]).
+    /// After a failure: answers period `k` with zero current, best effort (the link may be
+    /// gone, or full because the node stopped reading). The write is given up after
+    /// [`STOP_SEND_ALLOWANCE`], its one bound: a stopping loop's zero command gets the stop's
+    /// allowance, not the watchdog's.
     pub async fn command_zero(&mut self, k: u64) {
-        let _ = tokio::time::timeout(
-            STOP_SEND_ALLOWANCE,
-            self.send_command(k, ActuatorPair::default()),
-        )
-        .await;
+        let zero = coil_command_frame(k, ActuatorPair::default(), (k + 1) as f64 * self.period_s);
+        if let Ok(frame) = zero {
+            let deadline = tokio::time::Instant::now() + STOP_SEND_ALLOWANCE;
+            let _ = self.send_until(k, &[frame], deadline).await;
+        }
     }
 
     /// At the end of a session (normal end or error path): closes the link's SLCAN channel

@@ -4,7 +4,9 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
+use scanhil_scene::json_file::{self, JsonFileError};
 use serde::Deserialize;
+use serde::de::DeserializeOwned;
 use serde_json::Value;
 
 /// The most variants one study may expand to: each is a folder of files and a scan.
@@ -51,16 +53,7 @@ impl Study {
     /// document, an empty value list, both or neither of `grid` and `list`, more than
     /// [`MAX_VARIANTS`] variants.
     pub fn load(path: &Path) -> anyhow::Result<Study> {
-        let text = std::fs::read_to_string(path)
-            .with_context(|| format!("cannot read study {}", path.display()))?;
-        let file: StudyFile = serde_json::from_str(&text).map_err(|error| {
-            anyhow::anyhow!(
-                "{}:{}:{}: {error}",
-                path.display(),
-                error.line(),
-                error.column()
-            )
-        })?;
+        let file: StudyFile = read_json(path, "study")?;
         let variants = match (file.grid, file.list) {
             (Some(grid), None) => expand_grid(&grid).with_context(|| path.display().to_string())?,
             (None, Some(list)) => list,
@@ -182,7 +175,7 @@ struct BaseDocuments {
 
 impl BaseDocuments {
     fn load(path: &Path) -> anyhow::Result<BaseDocuments> {
-        let scenario = read_json(path)?;
+        let scenario = read_json(path, "scenario")?;
         Ok(BaseDocuments {
             scenario,
             scenario_dir: path.parent().unwrap_or(Path::new(".")).to_owned(),
@@ -216,7 +209,11 @@ impl BaseDocuments {
                 set(&mut scenario, field, value)?;
             }
         }
-        for document in ["scene", "controller", "rig"] {
+        for (document, kind) in [
+            ("scene", "scene"),
+            ("controller", "controller settings"),
+            ("rig", "rig"),
+        ] {
             let prefix = format!("{document}.");
             let changes: Vec<(&str, &Value)> = values
                 .iter()
@@ -229,7 +226,7 @@ impl BaseDocuments {
                 bail!("the scenario names no `{document}` to change");
             };
             let source = PathBuf::from(source);
-            let mut json = read_json(&source)?;
+            let mut json: Value = read_json(&source, kind)?;
             if document == "scene" {
                 absolute_height_map(&mut json, source.parent().unwrap_or(Path::new(".")));
             }
@@ -284,17 +281,10 @@ fn absolute(path: &Path) -> PathBuf {
         .unwrap_or_else(|_| path.to_owned())
 }
 
-fn read_json(path: &Path) -> anyhow::Result<Value> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    serde_json::from_str(&text).map_err(|error| {
-        anyhow::anyhow!(
-            "{}:{}:{}: {error}",
-            path.display(),
-            error.line(),
-            error.column()
-        )
-    })
+/// Reads and parses the `kind` JSON file at `path` (errors name the file, and the line and
+/// column of a parse error).
+fn read_json<T: DeserializeOwned>(path: &Path, kind: &'static str) -> Result<T, JsonFileError> {
+    json_file::parse(&json_file::read_text(path, kind)?, path)
 }
 
 fn write_json(path: &Path, value: &Value) -> anyhow::Result<()> {
