@@ -16,9 +16,13 @@
 //! [`Plane::height_mm`] is positive above the plane. Heights are perpendicular distances: on
 //! a tilted object they are the object's own heights, not vertical differences.
 
+use std::borrow::Cow;
+
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+
+use super::point::Point3;
 
 /// How many least-squares refinement rounds follow the random search at most.
 pub const REFINE_ROUNDS: usize = 10;
@@ -146,20 +150,24 @@ pub enum RansacError {
     },
 }
 
-/// Fits the dominant plane of `points` (non-finite points are ignored).
-pub fn fit_plane(points: &[[f64; 3]], params: &RansacParams) -> Result<PlaneFit, RansacError> {
+/// Fits the dominant plane of `points` (non-finite points are ignored). The points are read
+/// in place when all are finite (the usual case); only otherwise are the finite ones copied.
+pub fn fit_plane<P: Point3 + Clone>(
+    points: &[P],
+    params: &RansacParams,
+) -> Result<PlaneFit, RansacError> {
     check_params(params)?;
-    let pts: Vec<[f64; 3]> = points
-        .iter()
-        .copied()
-        .filter(|p| p.iter().all(|v| v.is_finite()))
-        .collect();
+    let pts: Cow<'_, [P]> = if points.iter().all(Point3::is_finite) {
+        Cow::Borrowed(points)
+    } else {
+        points.iter().filter(|p| p.is_finite()).cloned().collect()
+    };
     if pts.len() < 3 {
         return Err(RansacError::TooFewPoints { found: pts.len() });
     }
     let count = |plane: &Plane| {
         pts.iter()
-            .filter(|&&p| plane.height_mm(p).abs() <= params.inlier_threshold_mm)
+            .filter(|p| plane.height_mm(p.xyz_mm()).abs() <= params.inlier_threshold_mm)
             .count()
     };
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
@@ -174,7 +182,7 @@ pub fn fit_plane(points: &[[f64; 3]], params: &RansacParams) -> Result<PlaneFit,
         if i == j || j == k || i == k {
             continue;
         }
-        let Some(plane) = Plane::through(pts[i], pts[j], pts[k]) else {
+        let Some(plane) = Plane::through(pts[i].xyz_mm(), pts[j].xyz_mm(), pts[k].xyz_mm()) else {
             continue;
         };
         let n = count(&plane);
@@ -202,7 +210,7 @@ pub fn fit_plane(points: &[[f64; 3]], params: &RansacParams) -> Result<PlaneFit,
     }
     let inlier_rms_mm = (inliers
         .iter()
-        .map(|&i| plane.height_mm(pts[i]).powi(2))
+        .map(|&i| plane.height_mm(pts[i].xyz_mm()).powi(2))
         .sum::<f64>()
         / inliers.len().max(1) as f64)
         .sqrt();
@@ -253,24 +261,23 @@ fn adaptive_iterations(w: f64, confidence: f64) -> usize {
     ((1.0 - confidence).ln() / (1.0 - p_good).ln()).ceil() as usize
 }
 
-fn inlier_set(pts: &[[f64; 3]], plane: &Plane, threshold: f64) -> Vec<usize> {
+fn inlier_set(pts: &[impl Point3], plane: &Plane, threshold: f64) -> Vec<usize> {
     (0..pts.len())
-        .filter(|&i| plane.height_mm(pts[i]).abs() <= threshold)
+        .filter(|&i| plane.height_mm(pts[i].xyz_mm()).abs() <= threshold)
         .collect()
 }
 
 /// The total-least-squares plane of the points at `indices`.
-fn least_squares_plane(pts: &[[f64; 3]], indices: &[usize]) -> Option<Plane> {
+fn least_squares_plane(pts: &[impl Point3], indices: &[usize]) -> Option<Plane> {
     if indices.len() < 3 {
         return None;
     }
     let n = indices.len() as f64;
-    let centroid = indices
-        .iter()
-        .fold(Vector3::zeros(), |acc, &i| acc + Vector3::from(pts[i]))
-        / n;
+    let centroid = indices.iter().fold(Vector3::zeros(), |acc, &i| {
+        acc + Vector3::from(pts[i].xyz_mm())
+    }) / n;
     let covariance = indices.iter().fold(Matrix3::zeros(), |acc, &i| {
-        let d = Vector3::from(pts[i]) - centroid;
+        let d = Vector3::from(pts[i].xyz_mm()) - centroid;
         acc + d * d.transpose()
     });
     let eigen = SymmetricEigen::new(covariance);
