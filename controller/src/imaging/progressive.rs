@@ -166,13 +166,26 @@ pub fn progressive_maps(
     grid: GridMethod,
     checkpoints_s: &[f64],
 ) -> Vec<(f64, HeightMap)> {
+    progressive_maps_with(points, spec, grid, checkpoints_s, |p| p.z_mm)
+}
+
+/// [`progressive_maps`] of each point's `height_mm(point)` instead of its z_s (such as its
+/// height above a plane), computed as the point is added: the points are read in place.
+#[must_use]
+pub fn progressive_maps_with(
+    points: &[ScanPoint],
+    spec: GridSpec,
+    grid: GridMethod,
+    checkpoints_s: &[f64],
+    height_mm: impl Fn(&ScanPoint) -> f64,
+) -> Vec<(f64, HeightMap)> {
     let mut acc = GridAccumulator::new(spec, grid);
     let mut next = 0;
     let mut out = Vec::with_capacity(checkpoints_s.len());
     for &t in checkpoints_s {
         while next < points.len() && points[next].t_s <= t {
             let p = &points[next];
-            acc.add(p.x_mm, p.y_mm, p.z_mm);
+            acc.add(p.x_mm, p.y_mm, height_mm(p));
             next += 1;
         }
         out.push((t, acc.height_map()));

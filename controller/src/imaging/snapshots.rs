@@ -7,12 +7,14 @@
 //! quantity (z_s, or the height above the subtracted base plane). Snapshots show measured
 //! cells only: no fill, missing cells marked.
 
+use std::borrow::Cow;
 use std::path::Path;
 
 use scanhil_report::{MapFigure, ReportError, draw_height_maps};
 
 use super::grid::{GridMethod, GridSpec, HeightMap};
-use super::progressive::{ScanFrame, progressive_maps};
+use super::point::Point3;
+use super::progressive::{ScanFrame, progressive_maps_with};
 use super::ransac::Plane;
 use super::reconstruct::ScanPoint;
 
@@ -54,7 +56,8 @@ impl Snapshot {
 }
 
 /// The maps after each of `fractions` (ascending) of `frame`, of the points' heights above
-/// `plane` when given (z_s otherwise), on `spec` with `grid`.
+/// `plane` when given (z_s otherwise), on `spec` with `grid`. Points in time order (a scan's)
+/// are read in place; others (a PLY from elsewhere) are copied and sorted by time first.
 #[must_use]
 pub fn snapshots(
     points: &[ScanPoint],
@@ -64,17 +67,18 @@ pub fn snapshots(
     frame: ScanFrame,
     fractions: &[f64],
 ) -> Vec<Snapshot> {
-    let mut heights: Vec<ScanPoint> = points
-        .iter()
-        .map(|p| ScanPoint {
-            z_mm: plane.map_or(p.z_mm, |plane| plane.height_mm([p.x_mm, p.y_mm, p.z_mm])),
-            ..*p
-        })
-        .collect();
-    // progressive_maps takes the points in time order.
-    heights.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
+    // progressive_maps_with takes the points in time order.
+    let by_time = |a: &ScanPoint, b: &ScanPoint| a.t_s.total_cmp(&b.t_s);
+    let points: Cow<'_, [ScanPoint]> = if points.is_sorted_by(|a, b| by_time(a, b).is_le()) {
+        Cow::Borrowed(points)
+    } else {
+        let mut sorted = points.to_vec();
+        sorted.sort_by(by_time);
+        Cow::Owned(sorted)
+    };
+    let height_mm = |p: &ScanPoint| plane.map_or(p.z_mm, |plane| plane.height_mm(p.xyz_mm()));
     let checkpoints: Vec<f64> = fractions.iter().map(|&f| frame.time_at(f)).collect();
-    progressive_maps(&heights, spec, grid, &checkpoints)
+    progressive_maps_with(&points, spec, grid, &checkpoints, height_mm)
         .into_iter()
         .zip(fractions)
         .map(|((t_s, map), &fraction)| Snapshot {
