@@ -1,11 +1,14 @@
-//! Peak heap of the imaging once a frame's points exist, per point: a large synthetic frame
-//! (the simulated stud, Lissajous at 20 kHz) is reconstructed, then each step after that is
+//! Peak heap of the imaging once a frame's points exist, per point: two synthetic frames
+//! (the simulated stud, Lissajous at 20 kHz) are reconstructed, then each step after that is
 //! measured by a counting allocator as the most bytes it held at once beyond what was live
-//! when it began. The floor is the frame's points themselves (56 B each): the ratio says how
-//! much of a second frame the step holds (0.0 is none). Prints JSON.
+//! when it began. A step's `bytes_per_added_point` (its peak's growth from the shorter frame
+//! to the longer, per point added) is what it holds per point: a copy of the points' x, y, z
+//! shows as 24 B or more, a grid or a figure as nothing. The floor is the point itself
+//! (56 B): `added_point_ratio_to_the_point` says how much of a second frame the step holds.
+//! Prints JSON.
 //!
-//! `cargo bench -p scanhil-controller --bench imaging_memory [-- SECONDS]` (default 10 s:
-//! 200 000 samples)
+//! `cargo bench -p scanhil-controller --bench imaging_memory [-- SHORT_S LONG_S]` (default
+//! 10 and 20 s: 200 000 and 400 000 samples)
 
 #[path = "../tests/imaging_support/mod.rs"]
 mod imaging_support;
@@ -13,6 +16,8 @@ mod imaging_support;
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::collections::BTreeMap;
 use std::sync::atomic::{AtomicUsize, Ordering};
+
+use anyhow::Context;
 
 use imaging_support::{lissajous, stud_scene};
 use scanhil_controller::imaging::feature::FeatureParams;
@@ -92,23 +97,15 @@ unsafe impl GlobalAlloc for CountingHeap {
     }
 }
 
-/// One step's peak, absolute and against the frame's points.
-fn figures(peak_bytes: usize, points: usize) -> serde_json::Value {
-    let point_bytes = std::mem::size_of::<ScanPoint>();
-    serde_json::json!({
-        "peak_bytes": peak_bytes,
-        "bytes_per_point": peak_bytes as f64 / points as f64,
-        "ratio_to_the_points": peak_bytes as f64 / (points * point_bytes) as f64,
-    })
-}
+/// The steps measured, by name, with their peaks in bytes.
+type Peaks = BTreeMap<&'static str, usize>;
 
-/// The steps after reconstruction on `reconstruction` with `options`, measured.
+/// The steps after reconstruction on `reconstruction` with `options`: each one's peak.
 fn measure_imaging(
     reconstruction: Reconstruction,
     options: &ImagingOptions,
     length_s: f64,
-) -> anyhow::Result<serde_json::Value> {
-    let points = reconstruction.cloud.points.len();
+) -> anyhow::Result<Peaks> {
     let (imaging, image_peak) = HEAP.measure(|| image_points(reconstruction, options));
     let mut imaging = imaging?;
     let frame = ScanFrame::from_first_sample(
@@ -129,44 +126,99 @@ fn measure_imaging(
         report?.failed_files.is_empty(),
         "an output could not be written"
     );
-    Ok(serde_json::json!({
-        "image_points": figures(image_peak, points),
-        "score_progressive": figures(score_peak, points),
-        "write_outputs": figures(write_peak, points),
-    }))
+    Ok(BTreeMap::from([
+        ("image_points", image_peak),
+        ("score_progressive", score_peak),
+        ("write_outputs", write_peak),
+    ]))
 }
 
-fn main() -> anyhow::Result<()> {
-    // `cargo bench` passes `--bench`; a number is the frame's length.
-    let length_s: f64 = std::env::args()
-        .skip(1)
-        .find_map(|a| a.parse().ok())
-        .unwrap_or(10.0);
+/// One frame of `length_s`: its points and each case's peaks.
+fn measure_frame(
+    length_s: f64,
+    cases: &[(&'static str, ImagingOptions)],
+) -> anyhow::Result<(usize, BTreeMap<&'static str, Peaks>)> {
     let samples = simulate_samples(
         lissajous,
         &stud_scene(GeometryModel::ExactReflection),
         20_000.0,
         length_s,
     );
-    let scan = ImagingOptions {
-        feature: Some(FeatureParams::default()),
-        ..ImagingOptions::default()
-    };
-    let plane = ImagingOptions {
-        subtract_plane: true,
-        ..ImagingOptions::default()
-    };
-    let scanner = Scanner::new(scan.setup, scan.model)?;
+    let (_, first) = cases.first().context("no case to measure")?;
+    let scanner = Scanner::new(first.setup, first.model)?;
     let reconstruction = reconstruct(&samples, &scanner);
     drop(samples);
     let points = reconstruction.cloud.points.len();
+    let mut peaks = BTreeMap::new();
+    for (name, options) in cases {
+        peaks.insert(
+            *name,
+            measure_imaging(reconstruction.clone(), options, length_s)?,
+        );
+    }
+    Ok((points, peaks))
+}
+
+fn main() -> anyhow::Result<()> {
+    // `cargo bench` passes `--bench`; two numbers are the frames' lengths.
+    let lengths_s: Vec<f64> = std::env::args()
+        .skip(1)
+        .filter_map(|a| a.parse().ok())
+        .collect();
+    let [short_s, long_s] = lengths_s[..] else {
+        return main_with(10.0, 20.0);
+    };
+    main_with(short_s, long_s)
+}
+
+/// Measures frames of `short_s` and `long_s` and prints each step's peak per point of the
+/// longer frame and per point the longer frame adds.
+fn main_with(short_s: f64, long_s: f64) -> anyhow::Result<()> {
+    let cases = [
+        (
+            "feature_z_map",
+            ImagingOptions {
+                feature: Some(FeatureParams::default()),
+                ..ImagingOptions::default()
+            },
+        ),
+        (
+            "plane_subtracted_map",
+            ImagingOptions {
+                subtract_plane: true,
+                ..ImagingOptions::default()
+            },
+        ),
+    ];
+    let (short_points, short) = measure_frame(short_s, &cases)?;
+    let (long_points, long) = measure_frame(long_s, &cases)?;
+    anyhow::ensure!(
+        long_points > short_points,
+        "the longer frame has no more points"
+    );
+    let point_bytes = std::mem::size_of::<ScanPoint>() as f64;
+    let mut steps = serde_json::Map::new();
+    for (case, long_peaks) in &long {
+        for (step, &long_peak) in long_peaks {
+            let short_peak = short[case][step];
+            let added =
+                (long_peak as f64 - short_peak as f64) / (long_points - short_points) as f64;
+            steps.insert(
+                format!("{case}/{step}"),
+                serde_json::json!({
+                    "peak_bytes": [short_peak, long_peak],
+                    "bytes_per_point": long_peak as f64 / long_points as f64,
+                    "bytes_per_added_point": added,
+                    "added_point_ratio_to_the_point": added / point_bytes,
+                }),
+            );
+        }
+    }
     let results = serde_json::json!({
-        "frame_s": length_s,
-        "points": points,
-        "point_bytes": std::mem::size_of::<ScanPoint>(),
-        "points_bytes": points * std::mem::size_of::<ScanPoint>(),
-        "feature_z_map": measure_imaging(reconstruction.clone(), &scan, length_s)?,
-        "plane_subtracted_map": measure_imaging(reconstruction, &plane, length_s)?,
+        "frames_s": [short_s, long_s],
+        "points": [short_points, long_points],
+        "point_bytes": point_bytes,
+        "steps": steps,
     });
     println!("{}", serde_json::to_string_pretty(&results)?);
     Ok(())

@@ -193,13 +193,13 @@ pub fn fit_plane<P: Point3 + Clone>(
         }
     }
     let (mut plane, _) = best.ok_or(RansacError::Degenerate { iterations })?;
-    let mut inliers = inlier_set(&pts, &plane, params.inlier_threshold_mm);
+    let mut inliers = Inliers::of(&pts, &plane, params.inlier_threshold_mm);
     for _ in 0..REFINE_ROUNDS {
         let Some(refined) = least_squares_plane(&pts, &inliers) else {
             break;
         };
-        let next = inlier_set(&pts, &refined, params.inlier_threshold_mm);
-        if next.len() < 3 {
+        let next = Inliers::of(&pts, &refined, params.inlier_threshold_mm);
+        if next.count < 3 {
             break;
         }
         plane = refined;
@@ -209,14 +209,14 @@ pub fn fit_plane<P: Point3 + Clone>(
         inliers = next;
     }
     let inlier_rms_mm = (inliers
-        .iter()
-        .map(|&i| plane.height_mm(pts[i].xyz_mm()).powi(2))
+        .points(&pts)
+        .map(|p| plane.height_mm(p).powi(2))
         .sum::<f64>()
-        / inliers.len().max(1) as f64)
+        / inliers.count.max(1) as f64)
         .sqrt();
     Ok(PlaneFit {
         plane,
-        inliers: inliers.len(),
+        inliers: inliers.count,
         candidates: pts.len(),
         iterations,
         inlier_rms_mm,
@@ -261,23 +261,48 @@ fn adaptive_iterations(w: f64, confidence: f64) -> usize {
     ((1.0 - confidence).ln() / (1.0 - p_good).ln()).ceil() as usize
 }
 
-fn inlier_set(pts: &[impl Point3], plane: &Plane, threshold: f64) -> Vec<usize> {
-    (0..pts.len())
-        .filter(|&i| plane.height_mm(pts[i].xyz_mm()).abs() <= threshold)
-        .collect()
+/// Which points lie within a threshold of a plane: one flag a point (a frame's inliers
+/// are most of its points, so flags hold a byte where indices would hold eight).
+#[derive(PartialEq)]
+struct Inliers {
+    /// Whether each point is an inlier.
+    is_inlier: Vec<bool>,
+    /// How many are.
+    count: usize,
 }
 
-/// The total-least-squares plane of the points at `indices`.
-fn least_squares_plane(pts: &[impl Point3], indices: &[usize]) -> Option<Plane> {
-    if indices.len() < 3 {
+impl Inliers {
+    /// The points of `pts` within `threshold` of `plane`.
+    fn of(pts: &[impl Point3], plane: &Plane, threshold: f64) -> Inliers {
+        let is_inlier: Vec<bool> = pts
+            .iter()
+            .map(|p| plane.height_mm(p.xyz_mm()).abs() <= threshold)
+            .collect();
+        let count = is_inlier.iter().filter(|&&inlier| inlier).count();
+        Inliers { is_inlier, count }
+    }
+
+    /// The inliers of `pts`, in order.
+    fn points<'a>(&'a self, pts: &'a [impl Point3]) -> impl Iterator<Item = [f64; 3]> + 'a {
+        pts.iter()
+            .zip(&self.is_inlier)
+            .filter(|(_, inlier)| **inlier)
+            .map(|(p, _)| p.xyz_mm())
+    }
+}
+
+/// The total-least-squares plane of the `inliers` of `pts`.
+fn least_squares_plane(pts: &[impl Point3], inliers: &Inliers) -> Option<Plane> {
+    if inliers.count < 3 {
         return None;
     }
-    let n = indices.len() as f64;
-    let centroid = indices.iter().fold(Vector3::zeros(), |acc, &i| {
-        acc + Vector3::from(pts[i].xyz_mm())
-    }) / n;
-    let covariance = indices.iter().fold(Matrix3::zeros(), |acc, &i| {
-        let d = Vector3::from(pts[i].xyz_mm()) - centroid;
+    let n = inliers.count as f64;
+    let centroid = inliers
+        .points(pts)
+        .fold(Vector3::zeros(), |acc, p| acc + Vector3::from(p))
+        / n;
+    let covariance = inliers.points(pts).fold(Matrix3::zeros(), |acc, p| {
+        let d = Vector3::from(p) - centroid;
         acc + d * d.transpose()
     });
     let eigen = SymmetricEigen::new(covariance);
