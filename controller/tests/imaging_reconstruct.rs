@@ -341,14 +341,44 @@ fn snapshot_coverage_grows_with_the_fraction_of_the_frame() {
     }
 }
 
-#[test]
-fn image_points_images_reconstructed_points_as_image_samples_does_and_checks_its_options() {
-    let samples = stud_samples(lissajous, 10_000.0);
-    let options = ImagingOptions {
+/// Heights above the base plane, with the default feature measured.
+fn plane_and_feature() -> ImagingOptions {
+    ImagingOptions {
         subtract_plane: true,
         feature: Some(FeatureParams::default()),
         ..ImagingOptions::default()
+    }
+}
+
+#[test]
+fn snapshots_above_the_plane_of_points_out_of_time_order_are_those_of_the_ordered_points() {
+    let samples = stud_samples(lissajous, 5_000.0);
+    let options = plane_and_feature();
+    let imaging = image_samples(&samples, &options).unwrap();
+    let plane = imaging.plane.as_ref().map(|f| &f.plane);
+    let frame = ScanFrame::from_first_sample(samples.iter().map(|s| s.t_s), 1.0);
+    let snapshots_of = |points: &[_]| {
+        snapshots(
+            points,
+            plane,
+            imaging.map.spec,
+            imaging.options.grid,
+            frame,
+            &SNAPSHOT_FRACTIONS,
+        )
     };
+    let in_order = snapshots_of(&imaging.reconstruction.cloud.points);
+    // The whole frame is the map of heights above the plane (no fill asked).
+    assert_eq!(in_order[3].map, imaging.map);
+    let mut reversed = imaging.reconstruction.cloud.points.clone();
+    reversed.reverse();
+    assert_eq!(snapshots_of(&reversed), in_order);
+}
+
+#[test]
+fn image_points_images_reconstructed_points_as_image_samples_does_and_checks_its_options() {
+    let samples = stud_samples(lissajous, 10_000.0);
+    let options = plane_and_feature();
     let reconstruction = || {
         reconstruct(
             &samples,
