@@ -16,12 +16,14 @@ pub trait Point3 {
 }
 
 impl Point3 for [f64; 3] {
+    #[inline]
     fn xyz_mm(&self) -> [f64; 3] {
         *self
     }
 }
 
 impl Point3 for ScanPoint {
+    #[inline]
     fn xyz_mm(&self) -> [f64; 3] {
         [self.x_mm, self.y_mm, self.z_mm]
     }

@@ -87,7 +87,9 @@ impl Plane {
     }
 
     /// Signed perpendicular distance of `p` from the plane, positive on the +z side, in mm.
+    /// (Inlined across crates: the fit's inner loop, instantiated where its points' type is.)
     #[must_use]
+    #[inline]
     pub fn height_mm(&self, p: [f64; 3]) -> f64 {
         Vector3::from(self.normal).dot(&Vector3::from(p)) - self.offset_mm
     }
