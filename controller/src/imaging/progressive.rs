@@ -15,6 +15,7 @@
 //! scan (perfect tracking, no noise) of a [`ScanScene`]; a recorded scan's samples go straight
 //! into [`progressive_errors`] instead.
 
+use std::borrow::Cow;
 use std::path::Path;
 
 use scanhil_geometry::{GeometryModel, Scanner};
@@ -158,7 +159,7 @@ impl ScanFrame {
     }
 }
 
-/// The map after every checkpoint time (ascending), from time-ordered points.
+/// The map after every checkpoint time (ascending): each holds the points taken up to then.
 #[must_use]
 pub fn progressive_maps(
     points: &[ScanPoint],
@@ -170,7 +171,9 @@ pub fn progressive_maps(
 }
 
 /// [`progressive_maps`] of each point's `height_mm(point)` instead of its z_s (such as its
-/// height above a plane), computed as the point is added: the points are read in place.
+/// height above a plane), computed as the point is added. Points in time order (a scan's)
+/// are read in place; others (a recording or a PLY from elsewhere) are copied and sorted by
+/// time first (stable: points of one time keep their order).
 #[must_use]
 pub fn progressive_maps_with(
     points: &[ScanPoint],
@@ -179,6 +182,14 @@ pub fn progressive_maps_with(
     checkpoints_s: &[f64],
     height_mm: impl Fn(&ScanPoint) -> f64,
 ) -> Vec<(f64, HeightMap)> {
+    let by_time = |a: &ScanPoint, b: &ScanPoint| a.t_s.total_cmp(&b.t_s);
+    let points: Cow<'_, [ScanPoint]> = if points.is_sorted_by(|a, b| by_time(a, b).is_le()) {
+        Cow::Borrowed(points)
+    } else {
+        let mut sorted = points.to_vec();
+        sorted.sort_by(by_time);
+        Cow::Owned(sorted)
+    };
     let mut acc = GridAccumulator::new(spec, grid);
     let mut next = 0;
     let mut out = Vec::with_capacity(checkpoints_s.len());

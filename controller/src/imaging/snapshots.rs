@@ -7,7 +7,6 @@
 //! quantity (z_s, or the height above the subtracted base plane). Snapshots show measured
 //! cells only: no fill, missing cells marked.
 
-use std::borrow::Cow;
 use std::path::Path;
 
 use scanhil_report::{MapFigure, ReportError, draw_height_maps};
@@ -56,8 +55,8 @@ impl Snapshot {
 }
 
 /// The maps after each of `fractions` (ascending) of `frame`, of the points' heights above
-/// `plane` when given (z_s otherwise), on `spec` with `grid`. Points in time order (a scan's)
-/// are read in place; others (a PLY from elsewhere) are copied and sorted by time first.
+/// `plane` when given (z_s otherwise), on `spec` with `grid`: see [`progressive_maps_with`]
+/// (points in time order are read in place).
 #[must_use]
 pub fn snapshots(
     points: &[ScanPoint],
@@ -67,18 +66,9 @@ pub fn snapshots(
     frame: ScanFrame,
     fractions: &[f64],
 ) -> Vec<Snapshot> {
-    // progressive_maps_with takes the points in time order.
-    let by_time = |a: &ScanPoint, b: &ScanPoint| a.t_s.total_cmp(&b.t_s);
-    let points: Cow<'_, [ScanPoint]> = if points.is_sorted_by(|a, b| by_time(a, b).is_le()) {
-        Cow::Borrowed(points)
-    } else {
-        let mut sorted = points.to_vec();
-        sorted.sort_by(by_time);
-        Cow::Owned(sorted)
-    };
     let height_mm = |p: &ScanPoint| plane.map_or(p.z_mm, |plane| plane.height_mm(p.xyz_mm()));
     let checkpoints: Vec<f64> = fractions.iter().map(|&f| frame.time_at(f)).collect();
-    progressive_maps_with(&points, spec, grid, &checkpoints, height_mm)
+    progressive_maps_with(points, spec, grid, &checkpoints, height_mm)
         .into_iter()
         .zip(fractions)
         .map(|((t_s, map), &fraction)| Snapshot {
