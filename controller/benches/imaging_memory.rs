@@ -5,7 +5,8 @@
 //! to the longer, per point added) is what it holds per point: a copy of the points' x, y, z
 //! shows as 24 B or more, a grid or a figure as nothing. The floor is the point itself
 //! (56 B): `added_point_ratio_to_the_point` says how much of a second frame the step holds.
-//! Prints JSON.
+//! Prints JSON; fails (exit 1, naming the steps) when a step holds more than
+//! [`BUDGET_BYTES_PER_ADDED_POINT`] per point added.
 //!
 //! `cargo bench -p scanhil-controller --bench imaging_memory [-- SHORT_S LONG_S]` (default
 //! 10 and 20 s: 200 000 and 400 000 samples)
@@ -96,6 +97,11 @@ unsafe impl GlobalAlloc for CountingHeap {
         q
     }
 }
+
+/// The most a step may hold per point added before the bench fails: below a copy of the
+/// points' x, y, z (24 B); the imaging holds 1-4 B (flags while the plane is refined, the
+/// feature's heights).
+const BUDGET_BYTES_PER_ADDED_POINT: f64 = 16.0;
 
 /// The steps measured, by name, with their peaks in bytes.
 type Peaks = BTreeMap<&'static str, usize>;
@@ -198,11 +204,15 @@ fn main_with(short_s: f64, long_s: f64) -> anyhow::Result<()> {
     );
     let point_bytes = std::mem::size_of::<ScanPoint>() as f64;
     let mut steps = serde_json::Map::new();
+    let mut over_budget = Vec::new();
     for (case, long_peaks) in &long {
         for (step, &long_peak) in long_peaks {
             let short_peak = short[case][step];
             let added =
                 (long_peak as f64 - short_peak as f64) / (long_points - short_points) as f64;
+            if added > BUDGET_BYTES_PER_ADDED_POINT {
+                over_budget.push(format!("{case}/{step}: {added:.1} B"));
+            }
             steps.insert(
                 format!("{case}/{step}"),
                 serde_json::json!({
@@ -218,8 +228,15 @@ fn main_with(short_s: f64, long_s: f64) -> anyhow::Result<()> {
         "frames_s": [short_s, long_s],
         "points": [short_points, long_points],
         "point_bytes": point_bytes,
+        "budget_bytes_per_added_point": BUDGET_BYTES_PER_ADDED_POINT,
         "steps": steps,
     });
     println!("{}", serde_json::to_string_pretty(&results)?);
+    anyhow::ensure!(
+        over_budget.is_empty(),
+        "over the budget of {BUDGET_BYTES_PER_ADDED_POINT} B per point added (a copy of the \
+         points?): {}",
+        over_budget.join(", ")
+    );
     Ok(())
 }
