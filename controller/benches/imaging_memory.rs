@@ -1,7 +1,7 @@
 //! Peak heap of the imaging once a frame's points exist, per point: two synthetic frames
 //! (the simulated stud, Lissajous at 20 kHz) are reconstructed, then each step after that is
-//! measured by a counting allocator as the most bytes it held at once beyond what was live
-//! when it began. A step's `bytes_per_added_point` (its peak's growth from the shorter frame
+//! measured by the allocator's count ([`peak_alloc`]) as the most bytes it held at once
+//! beyond what was live when it began. A step's `bytes_per_added_point` (its peak's growth from the shorter frame
 //! to the longer, per point added) is what it holds per point: a copy of the points' x, y, z
 //! shows as 24 B or more, a grid or a figure as nothing. The floor is the point itself
 //! (56 B): `added_point_ratio_to_the_point` says how much of a second frame the step holds.
@@ -14,11 +14,10 @@
 #[path = "../tests/imaging_support/mod.rs"]
 mod imaging_support;
 
-use std::alloc::{GlobalAlloc, Layout, System};
 use std::collections::BTreeMap;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 use anyhow::Context;
+use peak_alloc::PeakAlloc;
 
 use imaging_support::{lissajous, stud_scene};
 use scanhil_controller::imaging::feature::FeatureParams;
@@ -28,74 +27,16 @@ use scanhil_controller::imaging::progressive::{ScanFrame, simulate_samples};
 use scanhil_controller::imaging::reconstruct::{Reconstruction, ScanPoint, reconstruct};
 use scanhil_geometry::{GeometryModel, Scanner};
 
-/// The system allocator, counting the bytes live now and the most live since the last
-/// [`CountingHeap::measure`] began.
-struct CountingHeap {
-    live: AtomicUsize,
-    peak: AtomicUsize,
-}
-
 #[global_allocator]
-static HEAP: CountingHeap = CountingHeap {
-    live: AtomicUsize::new(0),
-    peak: AtomicUsize::new(0),
-};
+static HEAP: PeakAlloc = PeakAlloc;
 
-impl CountingHeap {
-    fn grew(&self, bytes: usize) {
-        let live = self.live.fetch_add(bytes, Ordering::Relaxed) + bytes;
-        self.peak.fetch_max(live, Ordering::Relaxed);
-    }
-
-    fn shrank(&self, bytes: usize) {
-        self.live.fetch_sub(bytes, Ordering::Relaxed);
-    }
-
-    /// Runs `step` and returns its value with the most bytes it held at once beyond those
-    /// live when it began.
-    fn measure<T>(&self, step: impl FnOnce() -> T) -> (T, usize) {
-        let before = self.live.load(Ordering::Relaxed);
-        self.peak.store(before, Ordering::Relaxed);
-        let value = step();
-        (value, self.peak.load(Ordering::Relaxed) - before)
-    }
-}
-
-// SAFETY: every call is passed to `System` unchanged; the counters only observe sizes.
-unsafe impl GlobalAlloc for CountingHeap {
-    unsafe fn alloc(&self, layout: Layout) -> *mut u8 {
-        // SAFETY: the caller's contract, passed on.
-        let p = unsafe { System.alloc(layout) };
-        if !p.is_null() {
-            self.grew(layout.size());
-        }
-        p
-    }
-
-    unsafe fn alloc_zeroed(&self, layout: Layout) -> *mut u8 {
-        // SAFETY: the caller's contract, passed on.
-        let p = unsafe { System.alloc_zeroed(layout) };
-        if !p.is_null() {
-            self.grew(layout.size());
-        }
-        p
-    }
-
-    unsafe fn dealloc(&self, p: *mut u8, layout: Layout) {
-        // SAFETY: the caller's contract, passed on.
-        unsafe { System.dealloc(p, layout) };
-        self.shrank(layout.size());
-    }
-
-    unsafe fn realloc(&self, p: *mut u8, layout: Layout, new_size: usize) -> *mut u8 {
-        // SAFETY: the caller's contract, passed on.
-        let q = unsafe { System.realloc(p, layout, new_size) };
-        if !q.is_null() {
-            self.grew(new_size);
-            self.shrank(layout.size());
-        }
-        q
-    }
+/// Runs `step` and returns its value with the most bytes it held at once beyond those live
+/// when it began.
+fn measure<T>(step: impl FnOnce() -> T) -> (T, usize) {
+    let before = HEAP.current_usage();
+    HEAP.reset_peak_usage();
+    let value = step();
+    (value, HEAP.peak_usage().saturating_sub(before))
 }
 
 /// The most a step may hold per point added before the bench fails: below a copy of the
@@ -112,15 +53,15 @@ fn measure_imaging(
     options: &ImagingOptions,
     length_s: f64,
 ) -> anyhow::Result<Peaks> {
-    let (imaging, image_peak) = HEAP.measure(|| image_points(reconstruction, options));
+    let (imaging, image_peak) = measure(|| image_points(reconstruction, options));
     let mut imaging = imaging?;
     let frame = ScanFrame::from_first_sample(
         imaging.reconstruction.cloud.points.iter().map(|p| p.t_s),
         length_s,
     );
-    let ((), score_peak) = HEAP.measure(|| imaging.score_progressive(None, frame));
+    let ((), score_peak) = measure(|| imaging.score_progressive(None, frame));
     let dir = tempfile::tempdir()?;
-    let (report, write_peak) = HEAP.measure(|| {
+    let (report, write_peak) = measure(|| {
         write_outputs(
             &imaging,
             dir.path(),
