@@ -1,6 +1,6 @@
 //! Speed of the imaging chain on one 20 kHz frame (20 000 samples of the simulated stud):
-//! reconstruction (both models), gridding (both methods), fills, RANSAC, feature height and
-//! the binary PLY writer.
+//! reconstruction (both models), gridding (both methods), fills, RANSAC and feature height
+//! (on `[f64; 3]` and on the reconstructed points in place) and the binary PLY writer.
 //!
 //! `cargo bench -p scanhil-controller --bench imaging`
 
@@ -59,11 +59,18 @@ fn imaging(c: &mut Criterion) {
             })
         });
     }
+    // On coordinates, and on the reconstructed points in place (as the pipeline measures).
     c.bench_function("ransac_plane_20k", |b| {
         b.iter(|| fit_plane(&xyz, &RansacParams::default()).unwrap())
     });
+    c.bench_function("ransac_plane_20k_scan_points", |b| {
+        b.iter(|| fit_plane(&cloud.points, &RansacParams::default()).unwrap())
+    });
     c.bench_function("feature_height_20k", |b| {
         b.iter(|| feature_height(&xyz, &FeatureParams::default()).unwrap())
+    });
+    c.bench_function("feature_height_20k_scan_points", |b| {
+        b.iter(|| feature_height(&cloud.points, &FeatureParams::default()).unwrap())
     });
     c.bench_function("ply_binary_write_20k", |b| {
         b.iter(|| {

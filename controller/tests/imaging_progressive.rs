@@ -9,20 +9,27 @@ use scanhil_controller::imaging::progressive::{
     ProgressiveComparison, ProgressivePoint, ProgressiveRun, ScanScene, progressive_errors,
     progressive_maps, simulate_samples,
 };
-use scanhil_controller::imaging::reconstruct::reconstruct;
+use scanhil_controller::imaging::reconstruct::{ScanPoint, reconstruct};
 use scanhil_geometry::{GeometryModel, Scanner};
 
 const CHECKPOINTS_S: [f64; 6] = [0.05, 0.1, 0.2, 0.4, 0.7, 1.0];
+
+/// The points of a 1 s scan of the stud at `rate_hz` (the scene and reconstruction share the
+/// paper's model).
+fn stud_points(angles: imaging_support::Angles, rate_hz: f64) -> Vec<ScanPoint> {
+    let scene = stud_scene(GeometryModel::SmallAngle);
+    let samples = simulate_samples(angles, &scene, rate_hz, 1.0);
+    reconstruct(&samples, &Scanner::paper(GeometryModel::SmallAngle))
+        .cloud
+        .points
+}
 
 fn run(
     angles: imaging_support::Angles,
     spec: Option<GridSpec>,
 ) -> (GridSpec, Vec<ProgressivePoint>) {
     let scene = stud_scene(GeometryModel::SmallAngle);
-    let samples = simulate_samples(angles, &scene, 10_000.0, 1.0);
-    let points = reconstruct(&samples, &Scanner::paper(GeometryModel::SmallAngle))
-        .cloud
-        .points;
+    let points = stud_points(angles, 10_000.0);
     let spec = spec.unwrap_or_else(|| {
         GridSpec::covering(points.iter().map(|p| (p.x_mm, p.y_mm)), 0.25).unwrap()
     });
@@ -70,11 +77,7 @@ fn lissajous_previews_the_whole_field_early_and_both_improve_with_time() {
 
 #[test]
 fn maps_grow_with_the_checkpoints_and_the_comparison_plots() {
-    let scene = stud_scene(GeometryModel::SmallAngle);
-    let samples = simulate_samples(lissajous, &scene, 2_000.0, 1.0);
-    let points = reconstruct(&samples, &Scanner::paper(GeometryModel::SmallAngle))
-        .cloud
-        .points;
+    let points = stud_points(lissajous, 2_000.0);
     let spec = GridSpec::covering(points.iter().map(|p| (p.x_mm, p.y_mm)), 0.5).unwrap();
     let maps = progressive_maps(&points, spec, GridMethod::CellMean, &[0.0, 0.5, 1.0]);
     let counts: Vec<u32> = maps.iter().map(|(_, m)| m.samples.iter().sum()).collect();
@@ -109,4 +112,28 @@ fn maps_grow_with_the_checkpoints_and_the_comparison_plots() {
         (back.grid.nx, back.fill),
         (comparison.grid.nx, comparison.fill)
     );
+}
+
+#[test]
+fn points_out_of_time_order_score_as_the_ordered_points_do() {
+    // A recording need not be in time order: each checkpoint still holds the points taken
+    // up to then.
+    let scene = stud_scene(GeometryModel::SmallAngle);
+    let points = stud_points(lissajous, 2_000.0);
+    let spec = GridSpec::covering(points.iter().map(|p| (p.x_mm, p.y_mm)), 0.25).unwrap();
+    let score = |points: &[ScanPoint]| {
+        progressive_errors(
+            points,
+            spec,
+            GridMethod::default(),
+            FillMethod::Nearest,
+            &CHECKPOINTS_S,
+            |x, y| scene.true_z_mm(x, y),
+        )
+    };
+    let ordered = score(&points);
+    assert!(ordered[0].coverage_fraction > 0.0);
+    let mut mixed = points.clone();
+    mixed.rotate_left(points.len() / 3);
+    assert_eq!(score(&mixed), ordered);
 }

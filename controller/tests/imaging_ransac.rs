@@ -1,5 +1,7 @@
-//! RANSAC base plane and feature height on synthetic scenes with known answers.
+//! RANSAC base plane and feature height on synthetic scenes with known answers, and the
+//! feature's selection against its definition.
 
+use proptest::prelude::*;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
@@ -7,6 +9,7 @@ use scanhil_controller::imaging::feature::{
     FeatureError, FeatureParams, FeatureSelection, Region, feature_height,
 };
 use scanhil_controller::imaging::ransac::{Plane, RansacError, RansacParams, fit_plane};
+use scanhil_controller::imaging::reconstruct::ScanPoint;
 
 /// A plane tilted by a few degrees (normal (0.05, -0.03, 1) normalised) through z = -130.
 fn tilted_z(x: f64, y: f64) -> f64 {
@@ -153,4 +156,123 @@ fn stud_height_inside_an_explicit_region_matches_the_truth() {
         feature_height(&points, &empty),
         Err(FeatureError::TooFewFeaturePoints { points: 0 })
     );
+}
+
+/// `[x, y, z]` as a reconstructed point (the other fields made up).
+fn scan_point(p: [f64; 3], i: usize) -> ScanPoint {
+    ScanPoint {
+        x_mm: p[0],
+        y_mm: p[1],
+        z_mm: p[2],
+        t_s: i as f64 * 5e-5,
+        d_alpha_rad: 0.0,
+        d_beta_rad: 0.0,
+        z_meas_mm: 130.0,
+    }
+}
+
+/// The feature's points by [`FeatureSelection::AboveThreshold`]'s definition, compared pair
+/// by pair: above `threshold` over `plane`, farther than `margin` from every point at or
+/// below it. Their count and mean height (summed in point order).
+fn above_threshold_by_definition(
+    points: &[[f64; 3]],
+    plane: &Plane,
+    threshold: f64,
+    margin: f64,
+) -> (usize, f64) {
+    let finite: Vec<([f64; 3], f64)> = points
+        .iter()
+        .filter(|p| p.iter().all(|v| v.is_finite()))
+        .map(|&p| (p, plane.height_mm(p)))
+        .collect();
+    let low: Vec<[f64; 3]> = finite
+        .iter()
+        .filter(|(_, h)| *h <= threshold)
+        .map(|&(p, _)| p)
+        .collect();
+    let selected: Vec<f64> = finite
+        .iter()
+        .filter(|(p, h)| {
+            *h > threshold
+                && low
+                    .iter()
+                    .all(|q| (q[0] - p[0]).hypot(q[1] - p[1]) > margin)
+        })
+        .map(|&(_, h)| h)
+        .collect();
+    let mean = selected.iter().sum::<f64>() / selected.len() as f64;
+    (selected.len(), mean)
+}
+
+#[test]
+fn the_top_of_the_stud_is_the_definitions_and_scan_points_measure_as_coordinates_do() {
+    let mut points = stud_scene(0.18, 11);
+    // A point that is not finite: left out by the plane fit (copying the rest) and the
+    // selection alike.
+    points.insert(100, [f64::NAN, 0.0, 0.0]);
+    let params = FeatureParams::default();
+    let m = feature_height(&points, &params).unwrap();
+    let FeatureSelection::AboveThreshold {
+        min_height_mm,
+        edge_margin_mm,
+    } = params.selection
+    else {
+        unreachable!("the default selects above a threshold")
+    };
+    let (count, mean) =
+        above_threshold_by_definition(&points, &m.plane.plane, min_height_mm, edge_margin_mm);
+    assert_eq!((m.points, m.height_mm), (count, mean));
+    let scan_points: Vec<ScanPoint> = points
+        .iter()
+        .enumerate()
+        .map(|(i, &p)| scan_point(p, i))
+        .collect();
+    assert_eq!(feature_height(&scan_points, &params).unwrap(), m);
+    let finite: Vec<[f64; 3]> = points
+        .iter()
+        .copied()
+        .filter(|p| p[0].is_finite())
+        .collect();
+    let fit = fit_plane(&finite, &params.ransac).unwrap();
+    assert_eq!(fit_plane(&points, &params.ransac).unwrap(), fit);
+    assert_eq!(fit_plane(&scan_points, &params.ransac).unwrap(), fit);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    /// Bumps on a flat base, any margin: the bucketed selection keeps exactly the points the
+    /// definition keeps (points on bucket borders and at negative coordinates included).
+    #[test]
+    fn the_selection_above_a_threshold_is_the_definitions(
+        bumps in proptest::collection::vec((-3.0..3.0f64, -3.0..3.0f64, 0.0..2.0f64), 1..200),
+        margin_steps in 1..40u32,
+        seed in any::<u64>(),
+    ) {
+        let margin = f64::from(margin_steps) * 0.05;
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        // A base of 0.05 mm lattice points (on bucket borders for many margins) at z = 0,
+        // more of them than bumps, so the base is the dominant plane.
+        let mut points: Vec<[f64; 3]> = (0..600)
+            .map(|_| [
+                f64::from(rng.random_range(-60..60i32)) * 0.05,
+                f64::from(rng.random_range(-60..60i32)) * 0.05,
+                0.0,
+            ])
+            .collect();
+        points.extend(bumps.iter().map(|&(x, y, z)| [x, y, z]));
+        let params = FeatureParams {
+            selection: FeatureSelection::AboveThreshold {
+                min_height_mm: 1.0,
+                edge_margin_mm: margin,
+            },
+            ..FeatureParams::default()
+        };
+        let fit = fit_plane(&points, &params.ransac).unwrap();
+        let (count, mean) = above_threshold_by_definition(&points, &fit.plane, 1.0, margin);
+        match feature_height(&points, &params) {
+            Ok(m) => prop_assert_eq!((m.points, m.height_mm), (count, mean)),
+            Err(e) => prop_assert_eq!(e, FeatureError::TooFewFeaturePoints { points: count }),
+        }
+    }
 }

@@ -11,7 +11,9 @@ use imaging_support::{
 };
 use reconstruct_command::{reconstruct_succeeds, scanhil_reconstruct};
 use scanhil_controller::imaging::feature::FeatureParams;
-use scanhil_controller::imaging::pipeline::{ImagingOptions, image_samples};
+use scanhil_controller::imaging::pipeline::{
+    ImagingError, ImagingOptions, MAX_PROGRESSIVE_STEPS, image_points, image_samples,
+};
 use scanhil_controller::imaging::ply::read_ply_file;
 use scanhil_controller::imaging::profiles::{Profiles, Section, sections};
 use scanhil_controller::imaging::progressive::{ScanFrame, simulate_samples};
@@ -336,6 +338,80 @@ fn snapshot_coverage_grows_with_the_fraction_of_the_frame() {
         // The whole frame is the map itself (no fill asked).
         assert_eq!(shots[3].map, imaging.map, "{name}");
         assert!((shots[1].t_s - 0.25).abs() < 1e-12, "{name}");
+    }
+}
+
+/// Heights above the base plane, with the default feature measured.
+fn plane_and_feature() -> ImagingOptions {
+    ImagingOptions {
+        subtract_plane: true,
+        feature: Some(FeatureParams::default()),
+        ..ImagingOptions::default()
+    }
+}
+
+#[test]
+fn snapshots_above_the_plane_of_points_out_of_time_order_are_those_of_the_ordered_points() {
+    let samples = stud_samples(lissajous, 5_000.0);
+    let options = plane_and_feature();
+    let imaging = image_samples(&samples, &options).unwrap();
+    let plane = imaging.plane.as_ref().map(|f| &f.plane);
+    let frame = ScanFrame::from_first_sample(samples.iter().map(|s| s.t_s), 1.0);
+    let snapshots_of = |points: &[_]| {
+        snapshots(
+            points,
+            plane,
+            imaging.map.spec,
+            imaging.options.grid,
+            frame,
+            &SNAPSHOT_FRACTIONS,
+        )
+    };
+    let in_order = snapshots_of(&imaging.reconstruction.cloud.points);
+    // The whole frame is the map of heights above the plane (no fill asked).
+    assert_eq!(in_order[3].map, imaging.map);
+    let mut reversed = imaging.reconstruction.cloud.points.clone();
+    reversed.reverse();
+    assert_eq!(snapshots_of(&reversed), in_order);
+}
+
+#[test]
+fn image_points_images_reconstructed_points_as_image_samples_does_and_checks_its_options() {
+    let samples = stud_samples(lissajous, 10_000.0);
+    let options = plane_and_feature();
+    let reconstruction = || {
+        reconstruct(
+            &samples,
+            &Scanner::new(options.setup, options.model).unwrap(),
+        )
+    };
+    assert_eq!(
+        image_points(reconstruction(), &options).unwrap(),
+        image_samples(&samples, &options).unwrap()
+    );
+    for steps in [0, MAX_PROGRESSIVE_STEPS + 1] {
+        let bad = ImagingOptions {
+            progressive_steps: steps,
+            ..options
+        };
+        let error = image_points(reconstruction(), &bad).unwrap_err();
+        assert!(
+            matches!(
+                error,
+                ImagingError::Options {
+                    field: "progressive_steps",
+                    ..
+                }
+            ),
+            "{error}"
+        );
+        assert!(matches!(
+            image_samples(&samples, &bad),
+            Err(ImagingError::Options {
+                field: "progressive_steps",
+                ..
+            })
+        ));
     }
 }
 

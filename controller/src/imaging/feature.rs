@@ -15,6 +15,9 @@
 //! 4. **Result.** The mean height of the feature points, their sample standard deviation
 //!    (`n - 1`), median and count.
 
+use std::collections::{HashMap, HashSet};
+
+use super::point::Point3;
 use super::ransac::{PlaneFit, RansacError, RansacParams, fit_plane};
 
 /// An area of the x-y plane.
@@ -144,9 +147,10 @@ pub enum FeatureError {
     },
 }
 
-/// Measures the feature in `points` (x, y, z in mm).
-pub fn feature_height(
-    points: &[[f64; 3]],
+/// Measures the feature in `points` (x, y, z in mm), read in place: heights above the
+/// plane are computed as they are needed, and only the feature's heights are kept.
+pub fn feature_height<P: Point3 + Clone>(
+    points: &[P],
     params: &FeatureParams,
 ) -> Result<FeatureHeight, FeatureError> {
     let explicit = match params.selection {
@@ -154,44 +158,39 @@ pub fn feature_height(
         FeatureSelection::AboveThreshold { .. } => None,
     };
     // The plane is fitted to every point unless a region says otherwise (then to a copy of
-    // those points only): a frame's points are not copied for nothing.
-    let plane_points: std::borrow::Cow<'_, [[f64; 3]]> =
-        if params.plane_region == Region::All && explicit.is_none() {
-            std::borrow::Cow::Borrowed(points)
-        } else {
-            points
-                .iter()
-                .copied()
-                .filter(|p| params.plane_region.contains(p[0], p[1]))
-                .filter(|p| explicit.is_none_or(|r| !r.contains(p[0], p[1])))
-                .collect()
-        };
-    let plane = fit_plane(&plane_points, &params.ransac)?;
-    let heights: Vec<([f64; 3], f64)> = points
-        .iter()
-        .filter(|p| p.iter().all(|v| v.is_finite()))
-        .map(|&p| (p, plane.plane.height_mm(p)))
-        .collect();
-    let feature: Vec<([f64; 3], f64)> = match params.selection {
-        FeatureSelection::Inside { region } => heights
+    // those points' coordinates only): a frame's points are not copied for nothing.
+    let plane = if params.plane_region == Region::All && explicit.is_none() {
+        fit_plane(points, &params.ransac)?
+    } else {
+        let plane_points: Vec<[f64; 3]> = points
             .iter()
-            .filter(|(p, _)| region.contains(p[0], p[1]))
-            .copied()
-            .collect(),
+            .map(Point3::xyz_mm)
+            .filter(|p| params.plane_region.contains(p[0], p[1]))
+            .filter(|p| explicit.is_none_or(|r| !r.contains(p[0], p[1])))
+            .collect();
+        fit_plane(&plane_points, &params.ransac)?
+    };
+    let heights = points.iter().filter(|p| p.is_finite()).map(|p| {
+        let p = p.xyz_mm();
+        (p, plane.plane.height_mm(p))
+    });
+    let feature = match params.selection {
+        FeatureSelection::Inside { region } => {
+            FeaturePoints::of(heights.filter(|(p, _)| region.contains(p[0], p[1])))
+        }
         FeatureSelection::AboveThreshold {
             min_height_mm,
             edge_margin_mm,
-        } => top_points(&heights, min_height_mm, edge_margin_mm),
+        } => top_points(heights, min_height_mm, edge_margin_mm),
     };
-    if feature.len() < 2 {
+    let mut selected = feature.heights_mm;
+    if selected.len() < 2 {
         return Err(FeatureError::TooFewFeaturePoints {
-            points: feature.len(),
+            points: selected.len(),
         });
     }
-    let centre = |k: usize| feature.iter().map(|(p, _)| p[k]).sum::<f64>() / feature.len() as f64;
-    let centre_mm = [centre(0), centre(1)];
-    let mut selected: Vec<f64> = feature.iter().map(|&(_, h)| h).collect();
     let n = selected.len() as f64;
+    let centre_mm = [feature.x_sum_mm / n, feature.y_sum_mm / n];
     let mean = selected.iter().sum::<f64>() / n;
     let var = selected.iter().map(|h| (h - mean).powi(2)).sum::<f64>() / (n - 1.0);
     selected.sort_by(f64::total_cmp);
@@ -212,30 +211,68 @@ pub fn feature_height(
     })
 }
 
+/// The selected feature points, kept as their heights and the sums of their x and y (for
+/// the centre), in point order.
+struct FeaturePoints {
+    heights_mm: Vec<f64>,
+    x_sum_mm: f64,
+    y_sum_mm: f64,
+}
+
+impl FeaturePoints {
+    /// The points `(point, height)` given, in order.
+    fn of(points: impl IntoIterator<Item = ([f64; 3], f64)>) -> FeaturePoints {
+        // The sums start at -0.0, as `Iterator::sum` of f64 does (exactly its result).
+        let mut feature = FeaturePoints {
+            heights_mm: Vec::new(),
+            x_sum_mm: -0.0,
+            y_sum_mm: -0.0,
+        };
+        for (p, h) in points {
+            feature.heights_mm.push(h);
+            feature.x_sum_mm += p[0];
+            feature.y_sum_mm += p[1];
+        }
+        feature
+    }
+}
+
 /// The points (with heights) above `threshold` that lie farther than `margin` from every
-/// lower point, found with a bucket grid of side `margin`.
-fn top_points(heights: &[([f64; 3], f64)], threshold: f64, margin: f64) -> Vec<([f64; 3], f64)> {
-    let above = heights.iter().filter(|(_, h)| *h > threshold).copied();
+/// lower point, found with a bucket grid of side `margin`. `heights` is walked three times:
+/// for the buckets of the points above, for the lower points in and next to those buckets
+/// (the only ones that can be within `margin` of a point above), and for the selection.
+fn top_points<I>(heights: I, threshold: f64, margin: f64) -> FeaturePoints
+where
+    I: Iterator<Item = ([f64; 3], f64)> + Clone,
+{
+    let above = heights.clone().filter(|(_, h)| *h > threshold);
     if margin.is_nan() || margin <= 0.0 {
-        return above.collect();
+        return FeaturePoints::of(above);
     }
     let key = |x: f64, y: f64| ((x / margin).floor() as i64, (y / margin).floor() as i64);
-    let mut low: std::collections::HashMap<(i64, i64), Vec<(f64, f64)>> =
-        std::collections::HashMap::new();
-    for (p, _) in heights.iter().filter(|(_, h)| *h <= threshold) {
-        low.entry(key(p[0], p[1])).or_default().push((p[0], p[1]));
+    let neighbours = |(kx, ky): (i64, i64)| {
+        (-1..=1).flat_map(move |dx| (-1..=1).map(move |dy| (kx + dx, ky + dy)))
+    };
+    let near_above: HashSet<(i64, i64)> = above
+        .clone()
+        .map(|(p, _)| key(p[0], p[1]))
+        .collect::<HashSet<_>>()
+        .into_iter()
+        .flat_map(neighbours)
+        .collect();
+    let mut low: HashMap<(i64, i64), Vec<(f64, f64)>> = HashMap::new();
+    for (p, _) in heights.filter(|(_, h)| *h <= threshold) {
+        let bucket = key(p[0], p[1]);
+        if near_above.contains(&bucket) {
+            low.entry(bucket).or_default().push((p[0], p[1]));
+        }
     }
-    above
-        .filter(|(p, _)| {
-            let (kx, ky) = key(p[0], p[1]);
-            !(-1..=1).any(|dx| {
-                (-1..=1).any(|dy| {
-                    low.get(&(kx + dx, ky + dy)).is_some_and(|cell| {
-                        cell.iter()
-                            .any(|&(x, y)| (x - p[0]).hypot(y - p[1]) <= margin)
-                    })
-                })
+    FeaturePoints::of(above.filter(|(p, _)| {
+        !neighbours(key(p[0], p[1])).any(|bucket| {
+            low.get(&bucket).is_some_and(|cell| {
+                cell.iter()
+                    .any(|&(x, y)| (x - p[0]).hypot(y - p[1]) <= margin)
             })
         })
-        .collect()
+    }))
 }

@@ -5,6 +5,7 @@
 //! - [`reconstruct`]: samples (mirror angles, distances) to 3D points, eq. 1-3 or exact.
 //! - [`recording`]: recorded samples as CSV or JSON lines (the `scanhil reconstruct` input).
 //! - [`ply`]: point clouds as PLY files (writer and reader).
+//! - [`point`]: a point's x, y, z, read in place from `[f64; 3]` or a reconstructed point.
 //! - [`grid`]: scattered points onto a regular height map (PNG and CSV output).
 //! - [`fill`]: filling the missing cells of a height map (nearest, diffusion).
 //! - [`ransac`]: the seeded RANSAC base-plane fit and heights above the plane.
@@ -21,6 +22,7 @@ pub mod fill;
 pub mod grid;
 pub mod pipeline;
 pub mod ply;
+pub mod point;
 pub mod profiles;
 pub mod progressive;
 pub mod ransac;

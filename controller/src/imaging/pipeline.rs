@@ -16,6 +16,7 @@ use super::feature::{FeatureError, FeatureHeight, FeatureParams, feature_height}
 use super::fill::{FillMethod, FillReport, fill_missing};
 use super::grid::{GridError, GridMethod, GridSpec, HeightMap, grid_points};
 use super::ply::{PlyEncoding, PlyError, write_ply_file};
+use super::point::Point3;
 use super::profiles::{ProfileCentre, draw_profiles, sections};
 use super::progressive::{
     ProgressiveComparison, ProgressivePoint, ProgressiveRun, ScanFrame, progressive_errors,
@@ -222,7 +223,9 @@ fn check_options(options: &ImagingOptions) -> Result<(), ImagingError> {
     Ok(())
 }
 
-/// Grids, fills and measures reconstructed points.
+/// Grids, fills and measures reconstructed points, read in place: no copy of the frame's
+/// points is made, so the imaging's working memory is the grid's and the feature's, not
+/// another frame.
 ///
 /// # Errors
 /// [`ImagingError`]: an unusable option, no point to lay a grid over, a base plane that
@@ -233,22 +236,21 @@ pub fn image_points(
     options: &ImagingOptions,
 ) -> Result<Imaging, ImagingError> {
     check_options(options)?;
-    let xyz: Vec<[f64; 3]> = reconstruction
-        .cloud
-        .points
-        .iter()
-        .map(|p| [p.x_mm, p.y_mm, p.z_mm])
-        .collect();
-    let feature = options.feature.map(|params| feature_height(&xyz, &params));
+    let points = &reconstruction.cloud.points;
+    let feature = options
+        .feature
+        .map(|params| feature_height(points, &params));
     let plane = match (&feature, options.subtract_plane) {
         (Some(Ok(f)), true) => Some(f.plane.clone()),
-        (_, true) => Some(fit_plane(&xyz, &options.ransac)?),
+        (_, true) => Some(fit_plane(points, &options.ransac)?),
         (_, false) => None,
     };
-    let spec = GridSpec::covering(xyz.iter().map(|p| (p[0], p[1])), options.pitch_mm)?;
-    let heights = xyz.iter().map(|&p| {
-        let h = plane.as_ref().map_or(p[2], |f| f.plane.height_mm(p));
-        (p[0], p[1], h)
+    let spec = GridSpec::covering(points.iter().map(|p| (p.x_mm, p.y_mm)), options.pitch_mm)?;
+    let heights = points.iter().map(|p| {
+        let h = plane
+            .as_ref()
+            .map_or(p.z_mm, |f| f.plane.height_mm(p.xyz_mm()));
+        (p.x_mm, p.y_mm, h)
     });
     let mut map = grid_points(heights, spec, options.grid);
     let fill = fill_missing(&mut map, options.fill);

@@ -15,6 +15,7 @@
 //! scan (perfect tracking, no noise) of a [`ScanScene`]; a recorded scan's samples go straight
 //! into [`progressive_errors`] instead.
 
+use std::borrow::Cow;
 use std::path::Path;
 
 use scanhil_geometry::{GeometryModel, Scanner};
@@ -158,7 +159,7 @@ impl ScanFrame {
     }
 }
 
-/// The map after every checkpoint time (ascending), from time-ordered points.
+/// The map after every checkpoint time (ascending): each holds the points taken up to then.
 #[must_use]
 pub fn progressive_maps(
     points: &[ScanPoint],
@@ -166,13 +167,36 @@ pub fn progressive_maps(
     grid: GridMethod,
     checkpoints_s: &[f64],
 ) -> Vec<(f64, HeightMap)> {
+    progressive_maps_with(points, spec, grid, checkpoints_s, |p| p.z_mm)
+}
+
+/// [`progressive_maps`] of each point's `height_mm(point)` instead of its z_s (such as its
+/// height above a plane), computed as the point is added. Points in time order (a scan's)
+/// are read in place; others (a recording or a PLY from elsewhere) are copied and sorted by
+/// time first (stable: points of one time keep their order).
+#[must_use]
+pub fn progressive_maps_with(
+    points: &[ScanPoint],
+    spec: GridSpec,
+    grid: GridMethod,
+    checkpoints_s: &[f64],
+    height_mm: impl Fn(&ScanPoint) -> f64,
+) -> Vec<(f64, HeightMap)> {
+    let by_time = |a: &ScanPoint, b: &ScanPoint| a.t_s.total_cmp(&b.t_s);
+    let points: Cow<'_, [ScanPoint]> = if points.is_sorted_by(|a, b| by_time(a, b).is_le()) {
+        Cow::Borrowed(points)
+    } else {
+        let mut sorted = points.to_vec();
+        sorted.sort_by(by_time);
+        Cow::Owned(sorted)
+    };
     let mut acc = GridAccumulator::new(spec, grid);
     let mut next = 0;
     let mut out = Vec::with_capacity(checkpoints_s.len());
     for &t in checkpoints_s {
         while next < points.len() && points[next].t_s <= t {
             let p = &points[next];
-            acc.add(p.x_mm, p.y_mm, p.z_mm);
+            acc.add(p.x_mm, p.y_mm, height_mm(p));
             next += 1;
         }
         out.push((t, acc.height_map()));

@@ -16,9 +16,13 @@
 //! [`Plane::height_mm`] is positive above the plane. Heights are perpendicular distances: on
 //! a tilted object they are the object's own heights, not vertical differences.
 
+use std::borrow::Cow;
+
 use nalgebra::{Matrix3, SymmetricEigen, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+
+use super::point::Point3;
 
 /// How many least-squares refinement rounds follow the random search at most.
 pub const REFINE_ROUNDS: usize = 10;
@@ -83,7 +87,9 @@ impl Plane {
     }
 
     /// Signed perpendicular distance of `p` from the plane, positive on the +z side, in mm.
+    /// (Inlined across crates: the fit's inner loop, instantiated where its points' type is.)
     #[must_use]
+    #[inline]
     pub fn height_mm(&self, p: [f64; 3]) -> f64 {
         Vector3::from(self.normal).dot(&Vector3::from(p)) - self.offset_mm
     }
@@ -146,20 +152,24 @@ pub enum RansacError {
     },
 }
 
-/// Fits the dominant plane of `points` (non-finite points are ignored).
-pub fn fit_plane(points: &[[f64; 3]], params: &RansacParams) -> Result<PlaneFit, RansacError> {
+/// Fits the dominant plane of `points` (non-finite points are ignored). The points are read
+/// in place when all are finite (the usual case); only otherwise are the finite ones copied.
+pub fn fit_plane<P: Point3 + Clone>(
+    points: &[P],
+    params: &RansacParams,
+) -> Result<PlaneFit, RansacError> {
     check_params(params)?;
-    let pts: Vec<[f64; 3]> = points
-        .iter()
-        .copied()
-        .filter(|p| p.iter().all(|v| v.is_finite()))
-        .collect();
+    let pts: Cow<'_, [P]> = if points.iter().all(Point3::is_finite) {
+        Cow::Borrowed(points)
+    } else {
+        points.iter().filter(|p| p.is_finite()).cloned().collect()
+    };
     if pts.len() < 3 {
         return Err(RansacError::TooFewPoints { found: pts.len() });
     }
     let count = |plane: &Plane| {
         pts.iter()
-            .filter(|&&p| plane.height_mm(p).abs() <= params.inlier_threshold_mm)
+            .filter(|p| plane.height_mm(p.xyz_mm()).abs() <= params.inlier_threshold_mm)
             .count()
     };
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
@@ -174,7 +184,7 @@ pub fn fit_plane(points: &[[f64; 3]], params: &RansacParams) -> Result<PlaneFit,
         if i == j || j == k || i == k {
             continue;
         }
-        let Some(plane) = Plane::through(pts[i], pts[j], pts[k]) else {
+        let Some(plane) = Plane::through(pts[i].xyz_mm(), pts[j].xyz_mm(), pts[k].xyz_mm()) else {
             continue;
         };
         let n = count(&plane);
@@ -185,13 +195,13 @@ pub fn fit_plane(points: &[[f64; 3]], params: &RansacParams) -> Result<PlaneFit,
         }
     }
     let (mut plane, _) = best.ok_or(RansacError::Degenerate { iterations })?;
-    let mut inliers = inlier_set(&pts, &plane, params.inlier_threshold_mm);
+    let mut inliers = Inliers::of(&pts, &plane, params.inlier_threshold_mm);
     for _ in 0..REFINE_ROUNDS {
         let Some(refined) = least_squares_plane(&pts, &inliers) else {
             break;
         };
-        let next = inlier_set(&pts, &refined, params.inlier_threshold_mm);
-        if next.len() < 3 {
+        let next = Inliers::of(&pts, &refined, params.inlier_threshold_mm);
+        if next.count < 3 {
             break;
         }
         plane = refined;
@@ -201,14 +211,14 @@ pub fn fit_plane(points: &[[f64; 3]], params: &RansacParams) -> Result<PlaneFit,
         inliers = next;
     }
     let inlier_rms_mm = (inliers
-        .iter()
-        .map(|&i| plane.height_mm(pts[i]).powi(2))
+        .points(&pts)
+        .map(|p| plane.height_mm(p).powi(2))
         .sum::<f64>()
-        / inliers.len().max(1) as f64)
+        / inliers.count.max(1) as f64)
         .sqrt();
     Ok(PlaneFit {
         plane,
-        inliers: inliers.len(),
+        inliers: inliers.count,
         candidates: pts.len(),
         iterations,
         inlier_rms_mm,
@@ -253,24 +263,48 @@ fn adaptive_iterations(w: f64, confidence: f64) -> usize {
     ((1.0 - confidence).ln() / (1.0 - p_good).ln()).ceil() as usize
 }
 
-fn inlier_set(pts: &[[f64; 3]], plane: &Plane, threshold: f64) -> Vec<usize> {
-    (0..pts.len())
-        .filter(|&i| plane.height_mm(pts[i]).abs() <= threshold)
-        .collect()
+/// Which points lie within a threshold of a plane: one flag a point (a frame's inliers
+/// are most of its points, so flags hold a byte where indices would hold eight).
+#[derive(PartialEq)]
+struct Inliers {
+    /// Whether each point is an inlier.
+    is_inlier: Vec<bool>,
+    /// How many are.
+    count: usize,
 }
 
-/// The total-least-squares plane of the points at `indices`.
-fn least_squares_plane(pts: &[[f64; 3]], indices: &[usize]) -> Option<Plane> {
-    if indices.len() < 3 {
+impl Inliers {
+    /// The points of `pts` within `threshold` of `plane`.
+    fn of(pts: &[impl Point3], plane: &Plane, threshold: f64) -> Inliers {
+        let is_inlier: Vec<bool> = pts
+            .iter()
+            .map(|p| plane.height_mm(p.xyz_mm()).abs() <= threshold)
+            .collect();
+        let count = is_inlier.iter().filter(|&&inlier| inlier).count();
+        Inliers { is_inlier, count }
+    }
+
+    /// The inliers of `pts`, in order.
+    fn points<'a>(&'a self, pts: &'a [impl Point3]) -> impl Iterator<Item = [f64; 3]> + 'a {
+        pts.iter()
+            .zip(&self.is_inlier)
+            .filter(|(_, inlier)| **inlier)
+            .map(|(p, _)| p.xyz_mm())
+    }
+}
+
+/// The total-least-squares plane of the `inliers` of `pts`.
+fn least_squares_plane(pts: &[impl Point3], inliers: &Inliers) -> Option<Plane> {
+    if inliers.count < 3 {
         return None;
     }
-    let n = indices.len() as f64;
-    let centroid = indices
-        .iter()
-        .fold(Vector3::zeros(), |acc, &i| acc + Vector3::from(pts[i]))
+    let n = inliers.count as f64;
+    let centroid = inliers
+        .points(pts)
+        .fold(Vector3::zeros(), |acc, p| acc + Vector3::from(p))
         / n;
-    let covariance = indices.iter().fold(Matrix3::zeros(), |acc, &i| {
-        let d = Vector3::from(pts[i]) - centroid;
+    let covariance = inliers.points(pts).fold(Matrix3::zeros(), |acc, p| {
+        let d = Vector3::from(p) - centroid;
         acc + d * d.transpose()
     });
     let eigen = SymmetricEigen::new(covariance);

@@ -12,7 +12,8 @@ use std::path::Path;
 use scanhil_report::{MapFigure, ReportError, draw_height_maps};
 
 use super::grid::{GridMethod, GridSpec, HeightMap};
-use super::progressive::{ScanFrame, progressive_maps};
+use super::point::Point3;
+use super::progressive::{ScanFrame, progressive_maps_with};
 use super::ransac::Plane;
 use super::reconstruct::ScanPoint;
 
@@ -54,7 +55,8 @@ impl Snapshot {
 }
 
 /// The maps after each of `fractions` (ascending) of `frame`, of the points' heights above
-/// `plane` when given (z_s otherwise), on `spec` with `grid`.
+/// `plane` when given (z_s otherwise), on `spec` with `grid`: see [`progressive_maps_with`]
+/// (points in time order are read in place).
 #[must_use]
 pub fn snapshots(
     points: &[ScanPoint],
@@ -64,17 +66,9 @@ pub fn snapshots(
     frame: ScanFrame,
     fractions: &[f64],
 ) -> Vec<Snapshot> {
-    let mut heights: Vec<ScanPoint> = points
-        .iter()
-        .map(|p| ScanPoint {
-            z_mm: plane.map_or(p.z_mm, |plane| plane.height_mm([p.x_mm, p.y_mm, p.z_mm])),
-            ..*p
-        })
-        .collect();
-    // progressive_maps takes the points in time order.
-    heights.sort_by(|a, b| a.t_s.total_cmp(&b.t_s));
+    let height_mm = |p: &ScanPoint| plane.map_or(p.z_mm, |plane| plane.height_mm(p.xyz_mm()));
     let checkpoints: Vec<f64> = fractions.iter().map(|&f| frame.time_at(f)).collect();
-    progressive_maps(&heights, spec, grid, &checkpoints)
+    progressive_maps_with(points, spec, grid, &checkpoints, height_mm)
         .into_iter()
         .zip(fractions)
         .map(|((t_s, map), &fraction)| Snapshot {
