@@ -37,6 +37,7 @@ enum Command {
 
 fn main() -> ExitCode {
     die_quietly_on_a_closed_pipe();
+    scanhil_controller::run::chunked::return_freed_chunks_to_the_os();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Scan(args) => commands::scan::run(args),

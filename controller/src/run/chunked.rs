@@ -6,6 +6,21 @@
 
 use std::collections::VecDeque;
 
+/// Makes freed chunks go back to the OS, for a program that holds long runs in [`Chunked`]
+/// (call it at start-up, before any other thread). glibc's allocator raises its threshold
+/// for serving a block as its own mapping to the size of the largest one freed, up to 32 MiB:
+/// after the first, the 1 MiB chunks come from the heap, and freeing them as a frame is
+/// paired does not shrink the process while the point cloud grows (a 60 s scan peaked at
+/// 107 MB resident against 75 MB with this). A fixed threshold of 256 KiB keeps every chunk
+/// a mapping of its own, unmapped when freed. Nothing on other C libraries.
+pub fn return_freed_chunks_to_the_os() {
+    #[cfg(target_env = "gnu")]
+    // SAFETY: mallopt only sets an allocator parameter; called before other threads exist.
+    unsafe {
+        nix::libc::mallopt(nix::libc::M_MMAP_THRESHOLD, 256 * 1024);
+    }
+}
+
 /// Items per chunk (1 MiB of 16-byte items).
 const CHUNK_LEN: usize = 1 << 16;
 

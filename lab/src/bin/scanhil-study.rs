@@ -59,6 +59,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    scanhil_controller::run::chunked::return_freed_chunks_to_the_os();
     match run(Cli::parse()) {
         Ok(code) => code,
         Err(error) => {
