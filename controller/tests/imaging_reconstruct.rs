@@ -10,7 +10,7 @@ use imaging_support::{
     stud_surface,
 };
 use reconstruct_command::{reconstruct_succeeds, scanhil_reconstruct};
-use scanhil_controller::imaging::feature::FeatureParams;
+use scanhil_controller::imaging::feature::{FeatureParams, Region};
 use scanhil_controller::imaging::pipeline::{
     ImagingError, ImagingOptions, MAX_PROGRESSIVE_STEPS, image_points, image_samples,
 };
@@ -413,6 +413,23 @@ fn image_points_images_reconstructed_points_as_image_samples_does_and_checks_its
             })
         ));
     }
+    let mut feature = options
+        .feature
+        .expect("plane_and_feature measures the stud");
+    feature.plane_region = Region::Disc {
+        x_mm: 0.0,
+        y_mm: 0.0,
+        radius_mm: -1.0,
+    };
+    let bad = ImagingOptions {
+        feature: Some(feature),
+        ..options
+    };
+    let error = image_points(reconstruction(), &bad).unwrap_err();
+    assert_eq!(
+        error.to_string(),
+        "imaging option `feature`: plane_region: radius_mm -1 must be positive and finite"
+    );
 }
 
 #[test]
@@ -609,5 +626,62 @@ fn reconstruct_refuses_a_search_radius_that_would_scan_the_whole_grid_per_cell()
         let stderr = String::from_utf8_lossy(&run.stderr);
         assert_eq!(run.status.code(), Some(1), "{radius}: {stderr}");
         assert!(stderr.contains("--radius-pitches"), "{stderr}");
+    }
+}
+
+#[test]
+fn reconstruct_takes_negative_rectangles_and_refuses_feature_settings_that_cannot_be_measured() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("rec.csv");
+    let samples = stud_samples(lissajous, 10_000.0);
+    write_recording_csv(std::fs::File::create(&input).unwrap(), &samples).unwrap();
+    let out = dir.path().join("out");
+    // The base plane around the stud, and a piece of its ring wall's top as the feature:
+    // the field's lower bounds are negative.
+    let (cx, cy) = field_centre();
+    let plane_rect = format!("{},{},{},{}", cx - 20.0, cx + 20.0, cy - 20.0, cy + 20.0);
+    let feature_rect = format!("{},{},{},{}", cx + 3.6, cx + 4.5, cy - 1.0, cy + 1.0);
+    assert!(plane_rect.starts_with('-'), "{plane_rect}");
+    let (_, report) = reconstruct_succeeds(
+        scanhil_reconstruct(&input, &out).args([
+            "--feature-height",
+            "--plane-rect",
+            &plane_rect,
+            "--feature-rect",
+            &feature_rect,
+        ]),
+        &out,
+    );
+    let feature = report.feature.expect("the feature measured");
+    assert!(
+        (feature.height_mm - STUD_HEIGHT_MM).abs() < 0.05,
+        "{feature:?}"
+    );
+    for (args, named) in [
+        (&["--plane-rect", "5,-5,-5,5"][..], "--plane-rect"),
+        (&["--feature-rect", "-1,1,1,-1"], "--feature-rect"),
+        (&["--feature-rect", "-1,1,nan,1"], "--feature-rect"),
+        (&["--feature-rect", "-1,1,1"], "--feature-rect"),
+        (
+            &["--plane-rect", "1,2,3,4", "--plane-rect", "1,2,3,4"],
+            "--plane-rect",
+        ),
+        (&["--edge-margin-mm", "-0.1"], "--edge-margin-mm"),
+        (&["--min-height-mm", "inf"], "--min-height-mm"),
+        (&["--ransac-threshold-mm", "0"], "--ransac-threshold-mm"),
+        (&["--pitch-mm", "-0.1"], "pitch"),
+    ] {
+        let run = scanhil_reconstruct(&input, &dir.path().join("refused"))
+            .arg("--feature-height")
+            .args(args)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{args:?}: {stderr}");
+        assert!(stderr.contains(named), "{args:?}: {stderr}");
+        assert!(
+            !dir.path().join("refused").exists(),
+            "refused before writing"
+        );
     }
 }

@@ -33,13 +33,13 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = Encoding::Binary)]
     ply: Encoding,
     /// Height map cell size, mm.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
     pitch_mm: f64,
     /// Gridding: per-cell mean, or inverse-distance weighting within --radius-pitches.
     #[arg(long, value_enum, default_value_t = Gridding::InverseDistance)]
     grid: Gridding,
     /// Inverse-distance search radius, in cell pitches.
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     radius_pitches: f64,
     /// How to fill cells no sample reached.
     #[arg(long, value_enum, default_value_t = Fill::None)]
@@ -51,19 +51,29 @@ pub struct Args {
     #[arg(long)]
     feature_height: bool,
     /// Feature points: higher than this above the plane, mm.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
     min_height_mm: f64,
     /// Feature points: farther than this from any lower point, mm.
-    #[arg(long, default_value_t = 0.3)]
+    #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
     edge_margin_mm: f64,
     /// Feature points: those inside this rectangle (x_min,x_max,y_min,y_max in mm) instead.
-    #[arg(long, value_delimiter = ',', num_args = 4)]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        requires = "feature_height"
+    )]
     feature_rect: Option<Vec<f64>>,
     /// Fit the base plane only to points inside this rectangle (x_min,x_max,y_min,y_max).
-    #[arg(long, value_delimiter = ',', num_args = 4)]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        requires = "feature_height"
+    )]
     plane_rect: Option<Vec<f64>>,
     /// RANSAC inlier distance, mm.
-    #[arg(long, default_value_t = 0.3)]
+    #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
     ransac_threshold_mm: f64,
     /// RANSAC seed.
     #[arg(long, default_value_t = 1)]
@@ -80,10 +90,10 @@ pub struct Args {
     #[arg(long)]
     rig: Option<PathBuf>,
     /// Start of the sensor's measuring range (for ild_raw), mm; overrides the rig's.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     range_start_mm: Option<f64>,
     /// Span of the sensor's measuring range (for ild_raw), mm; overrides the rig's.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     range_span_mm: Option<f64>,
 }
 
@@ -115,12 +125,33 @@ enum Fill {
     Diffusion,
 }
 
-fn rect(v: &[f64]) -> Region {
-    Region::Rect {
+/// The rectangle `x_min,x_max,y_min,y_max` given to `flag`, checked.
+fn rect(flag: &str, v: &[f64]) -> anyhow::Result<Region> {
+    if v.len() != 4 {
+        anyhow::bail!(
+            "{flag}: {} numbers given; a rectangle is 4, x_min,x_max,y_min,y_max in mm",
+            v.len()
+        );
+    }
+    let region = Region::Rect {
         x_min_mm: v[0],
         x_max_mm: v[1],
         y_min_mm: v[2],
         y_max_mm: v[3],
+    };
+    region
+        .check()
+        .map_err(|reason| anyhow::anyhow!("{flag} {v:?}: {reason}"))?;
+    Ok(region)
+}
+
+/// The command-line flag that sets a field of [`FeatureParams::check`]'s answer.
+fn feature_flag(field: &str) -> &str {
+    match field {
+        "selection.min_height_mm" => "--min-height-mm",
+        "selection.edge_margin_mm" => "--edge-margin-mm",
+        "ransac" => "--ransac-threshold-mm",
+        other => other,
     }
 }
 
@@ -164,17 +195,33 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         seed: args.seed,
         ..RansacParams::default()
     };
-    let feature = args.feature_height.then(|| FeatureParams {
-        plane_region: args.plane_rect.as_deref().map_or(Region::All, rect),
-        selection: match &args.feature_rect {
-            Some(v) => FeatureSelection::Inside { region: rect(v) },
-            None => FeatureSelection::AboveThreshold {
-                min_height_mm: args.min_height_mm,
-                edge_margin_mm: args.edge_margin_mm,
+    let feature = if args.feature_height {
+        let params = FeatureParams {
+            plane_region: match &args.plane_rect {
+                Some(v) => rect("--plane-rect", v)?,
+                None => Region::All,
             },
-        },
-        ransac,
-    });
+            selection: match &args.feature_rect {
+                Some(v) => FeatureSelection::Inside {
+                    region: rect("--feature-rect", v)?,
+                },
+                None => FeatureSelection::AboveThreshold {
+                    min_height_mm: args.min_height_mm,
+                    edge_margin_mm: args.edge_margin_mm,
+                },
+            },
+            ransac,
+        };
+        params
+            .check()
+            .map_err(|(field, reason)| anyhow::anyhow!("{}: {reason}", feature_flag(field)))?;
+        Some(params)
+    } else {
+        None
+    };
+    if args.subtract_plane {
+        ransac.check().context("--ransac-threshold-mm")?;
+    }
     let options = ImagingOptions {
         model: match args.model {
             Model::SmallAngle => GeometryModel::SmallAngle,

@@ -49,6 +49,59 @@ pub enum Region {
 }
 
 impl Region {
+    /// Checks that the region is a real area: finite bounds, a rectangle's minimum at or
+    /// below its maximum, a disc's radius positive.
+    ///
+    /// # Errors
+    /// What is wrong, naming the bound.
+    pub fn check(&self) -> Result<(), String> {
+        let finite = |name: &str, value: f64| {
+            if value.is_finite() {
+                Ok(())
+            } else {
+                Err(format!("{name} {value} is not finite"))
+            }
+        };
+        match *self {
+            Region::All => Ok(()),
+            Region::Disc {
+                x_mm,
+                y_mm,
+                radius_mm,
+            } => {
+                finite("x_mm", x_mm)?;
+                finite("y_mm", y_mm)?;
+                if radius_mm.is_finite() && radius_mm > 0.0 {
+                    Ok(())
+                } else {
+                    Err(format!("radius_mm {radius_mm} must be positive and finite"))
+                }
+            }
+            Region::Rect {
+                x_min_mm,
+                x_max_mm,
+                y_min_mm,
+                y_max_mm,
+            } => {
+                for (name, value) in [
+                    ("x_min_mm", x_min_mm),
+                    ("x_max_mm", x_max_mm),
+                    ("y_min_mm", y_min_mm),
+                    ("y_max_mm", y_max_mm),
+                ] {
+                    finite(name, value)?;
+                }
+                if x_min_mm > x_max_mm {
+                    Err(format!("x_min_mm {x_min_mm} is above x_max_mm {x_max_mm}"))
+                } else if y_min_mm > y_max_mm {
+                    Err(format!("y_min_mm {y_min_mm} is above y_max_mm {y_max_mm}"))
+                } else {
+                    Ok(())
+                }
+            }
+        }
+    }
+
     /// Whether `(x, y)` lies inside (borders included).
     #[must_use]
     pub fn contains(&self, x_mm: f64, y_mm: f64) -> bool {
@@ -110,6 +163,45 @@ impl Default for FeatureParams {
             },
             ransac: RansacParams::default(),
         }
+    }
+}
+
+impl FeatureParams {
+    /// Checks every setting before any point is measured: both regions real areas, the
+    /// threshold finite, the edge margin finite and not negative, the RANSAC settings usable.
+    ///
+    /// # Errors
+    /// The setting (`plane_region`, `selection.region`, `selection.min_height_mm`,
+    /// `selection.edge_margin_mm`, `ransac`) and what is wrong with it.
+    pub fn check(&self) -> Result<(), (&'static str, String)> {
+        self.plane_region
+            .check()
+            .map_err(|reason| ("plane_region", reason))?;
+        match self.selection {
+            FeatureSelection::Inside { region } => region
+                .check()
+                .map_err(|reason| ("selection.region", reason))?,
+            FeatureSelection::AboveThreshold {
+                min_height_mm,
+                edge_margin_mm,
+            } => {
+                if !min_height_mm.is_finite() {
+                    return Err((
+                        "selection.min_height_mm",
+                        format!("{min_height_mm} mm is not finite"),
+                    ));
+                }
+                if !(edge_margin_mm.is_finite() && edge_margin_mm >= 0.0) {
+                    return Err((
+                        "selection.edge_margin_mm",
+                        format!("{edge_margin_mm} mm must be finite and not negative"),
+                    ));
+                }
+            }
+        }
+        self.ransac
+            .check()
+            .map_err(|error| ("ransac", error.to_string()))
     }
 }
 

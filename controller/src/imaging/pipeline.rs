@@ -220,6 +220,17 @@ fn check_options(options: &ImagingOptions) -> Result<(), ImagingError> {
             reason: format!("{steps} is not between 1 and {MAX_PROGRESSIVE_STEPS}"),
         });
     }
+    if let Some(feature) = &options.feature {
+        feature
+            .check()
+            .map_err(|(field, reason)| ImagingError::Options {
+                field: "feature",
+                reason: format!("{field}: {reason}"),
+            })?;
+    }
+    if options.subtract_plane {
+        options.ransac.check()?;
+    }
     Ok(())
 }
 

@@ -56,6 +56,37 @@ impl Default for RansacParams {
     }
 }
 
+impl RansacParams {
+    /// Checks that the settings can run: a positive finite threshold, at least one draw, a
+    /// confidence strictly between 0 and 1.
+    ///
+    /// # Errors
+    /// [`RansacError::BadParameter`] naming the setting.
+    pub fn check(&self) -> Result<(), RansacError> {
+        let bad = |name, value: f64, expected| {
+            Err(RansacError::BadParameter {
+                name,
+                value,
+                expected,
+            })
+        };
+        if !(self.inlier_threshold_mm.is_finite() && self.inlier_threshold_mm > 0.0) {
+            return bad(
+                "inlier_threshold_mm",
+                self.inlier_threshold_mm,
+                "positive, finite",
+            );
+        }
+        if self.max_iterations == 0 {
+            return bad("max_iterations", 0.0, "at least 1");
+        }
+        if !(self.confidence > 0.0 && self.confidence < 1.0) {
+            return bad("confidence", self.confidence, "between 0 and 1, exclusive");
+        }
+        Ok(())
+    }
+}
+
 /// A plane `normal . p = offset_mm` with a unit normal pointing to +z.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Plane {
@@ -158,7 +189,7 @@ pub fn fit_plane<P: Point3 + Clone>(
     points: &[P],
     params: &RansacParams,
 ) -> Result<PlaneFit, RansacError> {
-    check_params(params)?;
+    params.check()?;
     let pts: Cow<'_, [P]> = if points.iter().all(Point3::is_finite) {
         Cow::Borrowed(points)
     } else {
@@ -224,30 +255,6 @@ pub fn fit_plane<P: Point3 + Clone>(
         inlier_rms_mm,
         params: *params,
     })
-}
-
-fn check_params(p: &RansacParams) -> Result<(), RansacError> {
-    let bad = |name, value: f64, expected| {
-        Err(RansacError::BadParameter {
-            name,
-            value,
-            expected,
-        })
-    };
-    if !(p.inlier_threshold_mm.is_finite() && p.inlier_threshold_mm > 0.0) {
-        return bad(
-            "inlier_threshold_mm",
-            p.inlier_threshold_mm,
-            "positive, finite",
-        );
-    }
-    if p.max_iterations == 0 {
-        return bad("max_iterations", 0.0, "at least 1");
-    }
-    if !(p.confidence > 0.0 && p.confidence < 1.0) {
-        return bad("confidence", p.confidence, "between 0 and 1, exclusive");
-    }
-    Ok(())
 }
 
 /// The draws needed to see one all-inlier triple with probability `confidence` when a

@@ -419,6 +419,11 @@ impl Scenario {
                 format!("{steps} is not between 1 and {MAX_PROGRESSIVE_STEPS}"),
             ));
         }
+        if let Some(feature) = &self.imaging.feature {
+            feature.check().map_err(|(field, reason)| {
+                invalid("imaging.feature", format!("{field}: {reason}"))
+            })?;
+        }
         self.trajectory
             .check(0.5 * self.rig.control_rate_hz)
             .map_err(|(field, reason)| invalid(field, reason))?;
@@ -506,6 +511,27 @@ mod tests {
             ..realtime()
         };
         assert_eq!(field(probe), Err("timing.probe_s"));
+    }
+
+    #[test]
+    fn a_feature_that_cannot_be_measured_is_refused_with_the_file_and_field() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../fixtures/scenarios/duplo-lissajous-dual-tone.json");
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(Scenario::from_json_str(&text, &path).is_ok());
+        let inverted = text.replace(
+            r#""plane_region": { "shape": "all" }"#,
+            r#""plane_region": { "shape": "rect", "x_min_mm": 5, "x_max_mm": -5, "y_min_mm": -5, "y_max_mm": 5 }"#,
+        );
+        assert_ne!(inverted, text, "the fixture's plane region");
+        let error = Scenario::from_json_str(&inverted, &path).unwrap_err();
+        assert!(
+            error.to_string().ends_with(
+                "duplo-lissajous-dual-tone.json: field `imaging.feature`: plane_region: \
+                 x_min_mm 5 is above x_max_mm -5"
+            ),
+            "{error}"
+        );
     }
 
     #[test]
