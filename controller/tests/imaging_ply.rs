@@ -2,7 +2,8 @@
 
 use proptest::prelude::*;
 use scanhil_controller::imaging::ply::{
-    PlyEncoding, PlyError, PointCloud, read_ply, read_ply_file, write_ply, write_ply_file,
+    PlyEncoding, PlyError, PointCloud, VERTEX_PROPERTIES, read_ply, read_ply_file,
+    read_point_cloud, read_point_cloud_file, write_ply, write_ply_file,
 };
 use scanhil_controller::imaging::reconstruct::{GeometryModel, ScanPoint};
 
@@ -83,6 +84,11 @@ fn every_encoding_round_trips_bit_exactly() {
                 original,
                 "{encoding:?} {model:?}"
             );
+            assert_eq!(
+                read_point_cloud(&to_bytes(&original, encoding)).unwrap(),
+                original,
+                "{encoding:?} {model:?}"
+            );
         }
     }
 }
@@ -95,6 +101,7 @@ fn file_round_trip() {
     write_ply_file(&path, &original, PlyEncoding::BinaryLittleEndian).unwrap();
     let read = read_ply_file(&path).unwrap();
     assert_eq!(read.to_point_cloud().unwrap(), original);
+    assert_eq!(read_point_cloud_file(&path).unwrap(), original);
     assert_eq!(read.column("z_meas_mm").unwrap().len(), 10);
 }
 
@@ -116,12 +123,15 @@ property uchar red\r\nelement face 1\r\nproperty list uchar int vertex_indices\r
     }
     let read = read_ply(&bytes).unwrap();
     assert_eq!(read.property_names, ["x", "y", "z", "red"]);
+    assert_eq!(read.count, 2);
     assert_eq!(
-        read.rows,
-        vec![vec![1.5, -2.0, 3.25, 200.0], vec![0.0, 1.0, -1.0, 7.0]]
+        read.rows().collect::<Vec<_>>(),
+        [[1.5, -2.0, 3.25, 200.0], [0.0, 1.0, -1.0, 7.0]]
     );
     // Not a scanhil cloud: no model comment.
     let err = read.to_point_cloud().unwrap_err();
+    assert!(err.to_string().contains("reconstruction model"), "{err}");
+    let err = read_point_cloud(&bytes).unwrap_err();
     assert!(err.to_string().contains("reconstruction model"), "{err}");
 }
 
@@ -188,10 +198,40 @@ fn ascii_bad_number_names_its_offset() {
     }
 }
 
+#[test]
+fn a_vertex_count_beyond_the_data_is_an_error_not_an_allocation() {
+    // A count no memory could hold: what is reserved follows the bytes there are.
+    let properties: String = VERTEX_PROPERTIES
+        .iter()
+        .map(|name| format!("property double {name}\n"))
+        .collect();
+    for format in ["ascii", "binary_little_endian"] {
+        let text = format!(
+            "ply\nformat {format} 1.0\ncomment model small_angle\nelement vertex {}\n\
+             {properties}end_header\n1 2 3\n",
+            usize::MAX / 2
+        );
+        for error in [
+            read_ply(text.as_bytes()).unwrap_err(),
+            read_point_cloud(text.as_bytes()).unwrap_err(),
+        ] {
+            match error {
+                PlyError::Data { reason, .. } => assert!(
+                    reason.contains("file ends inside vertex 0 t_s")
+                        || reason.contains("do not fit"),
+                    "{format}: {reason}"
+                ),
+                other => panic!("{format}: expected a data error, got {other}"),
+            }
+        }
+    }
+}
+
 proptest! {
     #[test]
     fn the_reader_never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..400)) {
         let _ = read_ply(&bytes);
+        let _ = read_point_cloud(&bytes);
     }
 
     #[test]
@@ -203,5 +243,6 @@ proptest! {
         bytes[i] = value;
         bytes.truncate(cut.min(bytes.len()));
         let _ = read_ply(&bytes);
+        let _ = read_point_cloud(&bytes);
     }
 }

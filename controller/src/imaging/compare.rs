@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use scanhil_report::ReportError;
 
 use super::pipeline::{ImagingReport, POINTS_PLY, PROFILES_CSV, PROFILES_SVG, SNAPSHOTS_PNG};
-use super::ply::{PlyError, read_ply_file};
+use super::ply::{PlyError, read_point_cloud_file};
 use super::profiles::{Profiles, ProfilesError, draw_profiles};
 use super::progressive::ScanFrame;
 use super::reconstruct::ScanPoint;
@@ -126,8 +126,7 @@ impl ScanFolder {
         let report: ImagingReport = serde_json::from_value(imaging.clone())
             .map_err(|e| report_error(format!("imaging: {e}")))?;
         let ply = dir.join(POINTS_PLY);
-        let points = read_ply_file(&ply)
-            .and_then(|v| v.to_point_cloud())
+        let points = read_point_cloud_file(&ply)
             .map_err(|source| CompareError::Ply {
                 path: ply.clone(),
                 source,

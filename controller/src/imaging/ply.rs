@@ -134,8 +134,10 @@ pub fn write_ply<W: Write>(
         let row = point_row(p);
         match encoding {
             PlyEncoding::Ascii => {
-                let text: Vec<String> = row.iter().map(|v| format!("{v:?}")).collect();
-                out.write_all(text.join(" ").as_bytes())?;
+                for (i, v) in row.iter().enumerate() {
+                    let separator = if i == 0 { "" } else { " " };
+                    write!(out, "{separator}{v:?}")?;
+                }
                 out.write_all(b"\n")?;
             }
             PlyEncoding::BinaryLittleEndian => {
@@ -179,7 +181,7 @@ fn point_row(p: &ScanPoint) -> [f64; 7] {
     ]
 }
 
-/// The vertex element of a PLY file: its scalar properties as `f64` columns.
+/// The vertex element of a PLY file: its scalar properties as `f64` values, a row per vertex.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PlyVertices {
     /// The data encoding the file declared.
@@ -188,23 +190,48 @@ pub struct PlyVertices {
     pub comments: Vec<String>,
     /// The names of the vertex element's scalar properties, in file order.
     pub property_names: Vec<String>,
-    /// One row per vertex, `property_names.len()` values each.
-    pub rows: Vec<Vec<f64>>,
+    /// How many vertices the file holds.
+    pub count: usize,
+    /// Every vertex's values, row after row (`property_names.len()` a row): one allocation
+    /// for the whole element, not one a vertex.
+    pub values: Vec<f64>,
 }
 
 impl PlyVertices {
+    /// The vertices' rows, `property_names.len()` values each, in file order.
+    pub fn rows(&self) -> impl Iterator<Item = &[f64]> {
+        let width = self.property_names.len();
+        (0..self.count).map(move |i| &self.values[i * width..(i + 1) * width])
+    }
+
     /// The values of one named property over all vertices, or `None` if there is none.
     #[must_use]
     pub fn column(&self, name: &str) -> Option<Vec<f64>> {
         let i = self.property_names.iter().position(|n| n == name)?;
-        Some(self.rows.iter().map(|r| r[i]).collect())
+        Some(self.rows().map(|r| r[i]).collect())
     }
 
     /// The scanhil point cloud stored in the file: all of [`VERTEX_PROPERTIES`] and the
     /// `comment model ...` line must be present.
     pub fn to_point_cloud(&self) -> Result<PointCloud, PlyError> {
-        let model_name = self
-            .comments
+        let layout = CloudLayout::of(&self.comments, &self.property_names)?;
+        Ok(PointCloud {
+            model: layout.model,
+            points: self.rows().map(|row| layout.point(row)).collect(),
+        })
+    }
+}
+
+/// Where a scanhil point cloud's model and properties sit in a PLY file.
+struct CloudLayout {
+    model: GeometryModel,
+    /// The row index of each of [`VERTEX_PROPERTIES`].
+    index: [usize; 7],
+}
+
+impl CloudLayout {
+    fn of(comments: &[String], property_names: &[String]) -> Result<CloudLayout, PlyError> {
+        let model_name = comments
             .iter()
             .find_map(|c| c.strip_prefix(MODEL_COMMENT))
             .ok_or_else(|| PlyError::NotAPointCloud {
@@ -215,38 +242,46 @@ impl PlyVertices {
         })?;
         let mut index = [0usize; 7];
         for (slot, name) in index.iter_mut().zip(VERTEX_PROPERTIES) {
-            *slot = self
-                .property_names
+            *slot = property_names
                 .iter()
                 .position(|n| n == name)
                 .ok_or_else(|| PlyError::NotAPointCloud {
                     reason: format!("vertex property '{name}' is missing"),
                 })?;
         }
-        let points = self
-            .rows
-            .iter()
-            .map(|r| ScanPoint {
-                x_mm: r[index[0]],
-                y_mm: r[index[1]],
-                z_mm: r[index[2]],
-                t_s: r[index[3]],
-                d_alpha_rad: r[index[4]],
-                d_beta_rad: r[index[5]],
-                z_meas_mm: r[index[6]],
-            })
-            .collect();
-        Ok(PointCloud { model, points })
+        Ok(CloudLayout { model, index })
+    }
+
+    fn point(&self, row: &[f64]) -> ScanPoint {
+        let [x, y, z, t, alpha, beta, z_meas] = self.index.map(|i| row[i]);
+        ScanPoint {
+            x_mm: x,
+            y_mm: y,
+            z_mm: z,
+            t_s: t,
+            d_alpha_rad: alpha,
+            d_beta_rad: beta,
+            z_meas_mm: z_meas,
+        }
     }
 }
 
 /// Reads the PLY file at `path`.
 pub fn read_ply_file(path: &Path) -> Result<PlyVertices, PlyError> {
-    let bytes = std::fs::read(path).map_err(|source| PlyError::Io {
+    read_ply(&read_file(path)?)
+}
+
+/// Reads the scanhil point cloud in the PLY file at `path`: the points are made as the
+/// vertices are read, so the file's bytes and the points are all it holds.
+pub fn read_point_cloud_file(path: &Path) -> Result<PointCloud, PlyError> {
+    read_point_cloud(&read_file(path)?)
+}
+
+fn read_file(path: &Path) -> Result<Vec<u8>, PlyError> {
+    std::fs::read(path).map_err(|source| PlyError::Io {
         path: path.display().to_string(),
         source,
-    })?;
-    read_ply(&bytes)
+    })
 }
 
 /// A scalar type of the PLY spec.
@@ -325,6 +360,52 @@ struct Element {
     properties: Vec<(String, Property)>,
 }
 
+impl Element {
+    /// The names of the scalar properties: a row's values, in order.
+    fn scalar_names(&self) -> Vec<String> {
+        self.properties
+            .iter()
+            .filter(|(_, p)| matches!(p, Property::Scalar(_)))
+            .map(|(n, _)| n.clone())
+            .collect()
+    }
+
+    /// The rows `data_len` bytes can hold at most, so a count in a header cannot ask for more
+    /// memory than the file could fill: a binary row is at least its scalars and list counts,
+    /// an ASCII value at least a digit and a separator.
+    fn rows_that_fit(&self, encoding: PlyEncoding, data_len: usize) -> usize {
+        let row_bytes: usize = self
+            .properties
+            .iter()
+            .map(|(_, p)| match (encoding, p) {
+                (PlyEncoding::Ascii, _) => 2,
+                (_, Property::Scalar(s)) => s.size(),
+                (_, Property::List { count, .. }) => count.size(),
+            })
+            .sum();
+        self.count.min(data_len / row_bytes.max(1))
+    }
+}
+
+/// Where a value sits in the data, spelled out only when an error names it.
+#[derive(Clone, Copy)]
+struct Place<'a> {
+    element: &'a str,
+    index: usize,
+    property: &'a str,
+    part: &'static str,
+}
+
+impl std::fmt::Display for Place<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} {} {}{}",
+            self.element, self.index, self.property, self.part
+        )
+    }
+}
+
 struct Header {
     encoding: PlyEncoding,
     comments: Vec<String>,
@@ -332,43 +413,70 @@ struct Header {
     data_offset: usize,
 }
 
+impl Header {
+    /// The first element named `vertex`.
+    fn vertex(&self) -> Result<&Element, PlyError> {
+        self.elements
+            .iter()
+            .find(|e| e.name == "vertex")
+            .ok_or_else(|| PlyError::NotAPointCloud {
+                reason: "the file has no 'vertex' element".into(),
+            })
+    }
+}
+
 /// Parses a whole PLY file held in memory.
 pub fn read_ply(bytes: &[u8]) -> Result<PlyVertices, PlyError> {
     let header = parse_header(bytes)?;
+    let vertex = header.vertex()?;
+    let property_names = vertex.scalar_names();
+    let rows = vertex.rows_that_fit(header.encoding, bytes.len() - header.data_offset);
+    let mut values = Vec::with_capacity(rows.saturating_mul(property_names.len()));
+    read_data(bytes, &header, |row| values.extend_from_slice(row))?;
+    Ok(PlyVertices {
+        encoding: header.encoding,
+        count: vertex.count,
+        property_names,
+        values,
+        comments: header.comments,
+    })
+}
+
+/// Parses the scanhil point cloud of a PLY file held in memory, making each point as its
+/// vertex is read (no table of the file's values in between).
+pub fn read_point_cloud(bytes: &[u8]) -> Result<PointCloud, PlyError> {
+    let header = parse_header(bytes)?;
+    let vertex = header.vertex()?;
+    let layout = CloudLayout::of(&header.comments, &vertex.scalar_names())?;
+    let mut points =
+        Vec::with_capacity(vertex.rows_that_fit(header.encoding, bytes.len() - header.data_offset));
+    read_data(bytes, &header, |row| points.push(layout.point(row)))?;
+    Ok(PointCloud {
+        model: layout.model,
+        points,
+    })
+}
+
+/// Reads every element's data, handing each row of the first `vertex` element (its scalar
+/// values) to `on_vertex` and skipping the rest.
+fn read_data(
+    bytes: &[u8],
+    header: &Header,
+    mut on_vertex: impl FnMut(&[f64]),
+) -> Result<(), PlyError> {
     let mut cursor = Cursor {
         bytes,
         offset: header.data_offset,
     };
-    let mut vertices = None;
+    let vertex = header.vertex()?;
     for element in &header.elements {
-        let is_vertex = element.name == "vertex" && vertices.is_none();
-        let rows = match header.encoding {
-            PlyEncoding::Ascii => read_ascii_element(&mut cursor, element, is_vertex)?,
-            PlyEncoding::BinaryLittleEndian => {
-                read_binary_element(&mut cursor, element, is_vertex, true)?
-            }
-            PlyEncoding::BinaryBigEndian => {
-                read_binary_element(&mut cursor, element, is_vertex, false)?
-            }
-        };
-        if is_vertex {
-            vertices = Some((element, rows));
+        if std::ptr::eq(element, vertex) {
+            read_element(&mut cursor, element, header.encoding, &mut on_vertex)?;
+        } else {
+            read_element(&mut cursor, element, header.encoding, &mut |_: &[f64]| {})?;
         }
     }
-    let (element, rows) = vertices.ok_or_else(|| PlyError::NotAPointCloud {
-        reason: "the file has no 'vertex' element".into(),
-    })?;
-    Ok(PlyVertices {
-        encoding: header.encoding,
-        comments: header.comments,
-        property_names: element
-            .properties
-            .iter()
-            .filter(|(_, p)| matches!(p, Property::Scalar(_)))
-            .map(|(n, _)| n.clone())
-            .collect(),
-        rows,
-    })
+    Ok(())
 }
 
 fn parse_header(bytes: &[u8]) -> Result<Header, PlyError> {
@@ -485,7 +593,7 @@ impl Cursor<'_> {
         }
     }
 
-    fn take(&mut self, n: usize, what: &str) -> Result<&[u8], PlyError> {
+    fn take(&mut self, n: usize, what: Place<'_>) -> Result<&[u8], PlyError> {
         let end = self
             .offset
             .checked_add(n)
@@ -501,7 +609,7 @@ impl Cursor<'_> {
     }
 
     /// The next whitespace-separated token (ASCII data).
-    fn token(&mut self, what: &str) -> Result<(usize, &str), PlyError> {
+    fn token(&mut self, what: Place<'_>) -> Result<(usize, &str), PlyError> {
         while self.offset < self.bytes.len() && self.bytes[self.offset].is_ascii_whitespace() {
             self.offset += 1;
         }
@@ -520,7 +628,47 @@ impl Cursor<'_> {
         Ok((start, text))
     }
 
-    fn ascii_number(&mut self, what: &str) -> Result<f64, PlyError> {
+    /// The next value of type `scalar`.
+    fn value(
+        &mut self,
+        encoding: PlyEncoding,
+        scalar: Scalar,
+        what: Place<'_>,
+    ) -> Result<f64, PlyError> {
+        match encoding {
+            PlyEncoding::Ascii => self.ascii_number(what),
+            PlyEncoding::BinaryLittleEndian => {
+                Ok(scalar.decode(self.take(scalar.size(), what)?, true))
+            }
+            PlyEncoding::BinaryBigEndian => {
+                Ok(scalar.decode(self.take(scalar.size(), what)?, false))
+            }
+        }
+    }
+
+    /// Passes over `n` values of type `scalar` (a list's items).
+    fn skip_values(
+        &mut self,
+        encoding: PlyEncoding,
+        scalar: Scalar,
+        n: usize,
+        what: Place<'_>,
+    ) -> Result<(), PlyError> {
+        if encoding == PlyEncoding::Ascii {
+            for _ in 0..n {
+                self.ascii_number(what)?;
+            }
+        } else {
+            let items = Place {
+                part: " items",
+                ..what
+            };
+            self.take(n.saturating_mul(scalar.size()), items)?;
+        }
+        Ok(())
+    }
+
+    fn ascii_number(&mut self, what: Place<'_>) -> Result<f64, PlyError> {
         let (start, text) = self.token(what)?;
         text.parse::<f64>().map_err(|_| PlyError::Data {
             offset: start,
@@ -537,39 +685,13 @@ fn list_len(value: f64, cursor: &Cursor<'_>) -> Result<usize, PlyError> {
     }
 }
 
-fn read_ascii_element(
+/// Reads one element's rows, handing each row's scalar values to `on_row`.
+fn read_element(
     cursor: &mut Cursor<'_>,
     element: &Element,
-    keep: bool,
-) -> Result<Vec<Vec<f64>>, PlyError> {
-    let mut rows = Vec::new();
-    for i in 0..element.count {
-        let what = format!("{} {i}", element.name);
-        let mut row = Vec::new();
-        for (name, property) in &element.properties {
-            match property {
-                Property::Scalar(_) => row.push(cursor.ascii_number(&format!("{what} {name}"))?),
-                Property::List { .. } => {
-                    let n = cursor.ascii_number(&format!("{what} {name} count"))?;
-                    for _ in 0..list_len(n, cursor)? {
-                        cursor.ascii_number(&format!("{what} {name} item"))?;
-                    }
-                }
-            }
-        }
-        if keep {
-            rows.push(row);
-        }
-    }
-    Ok(rows)
-}
-
-fn read_binary_element(
-    cursor: &mut Cursor<'_>,
-    element: &Element,
-    keep: bool,
-    little: bool,
-) -> Result<Vec<Vec<f64>>, PlyError> {
+    encoding: PlyEncoding,
+    on_row: &mut dyn FnMut(&[f64]),
+) -> Result<(), PlyError> {
     let fixed_row: Option<usize> = element
         .properties
         .iter()
@@ -578,7 +700,7 @@ fn read_binary_element(
             Property::List { .. } => None,
         })
         .sum();
-    if let Some(row) = fixed_row {
+    if let (false, Some(row)) = (encoding == PlyEncoding::Ascii, fixed_row) {
         let needed = row.checked_mul(element.count);
         if needed.is_none_or(|n| n > cursor.bytes.len() - cursor.offset) {
             return Err(cursor.data_err(format!(
@@ -589,27 +711,26 @@ fn read_binary_element(
             )));
         }
     }
-    let mut rows = Vec::new();
-    for i in 0..element.count {
-        let what = format!("{} {i}", element.name);
-        let mut row = Vec::new();
-        for (name, property) in &element.properties {
-            match *property {
-                Property::Scalar(s) => {
-                    let b = cursor.take(s.size(), &format!("{what} {name}"))?;
-                    row.push(s.decode(b, little));
-                }
+    let mut row = Vec::new();
+    for index in 0..element.count {
+        row.clear();
+        for (property, kind) in &element.properties {
+            let place = |part| Place {
+                element: &element.name,
+                index,
+                property,
+                part,
+            };
+            match *kind {
+                Property::Scalar(s) => row.push(cursor.value(encoding, s, place(""))?),
                 Property::List { count, item } => {
-                    let b = cursor.take(count.size(), &format!("{what} {name} count"))?;
-                    let n = list_len(count.decode(b, little), cursor)?;
-                    let bytes = n.saturating_mul(item.size());
-                    cursor.take(bytes, &format!("{what} {name} items"))?;
+                    let n = cursor.value(encoding, count, place(" count"))?;
+                    let n = list_len(n, cursor)?;
+                    cursor.skip_values(encoding, item, n, place(" item"))?;
                 }
             }
         }
-        if keep {
-            rows.push(row);
-        }
+        on_row(&row);
     }
-    Ok(rows)
+    Ok(())
 }
