@@ -1,4 +1,5 @@
-//! `scanhil analyze`, `identify` and `trajectory` as a user runs them.
+//! `scanhil analyze`, `identify` and `trajectory` as a user runs them, and numbers on the
+//! command line.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -82,6 +83,49 @@ fn trajectory_prints_the_derived_figures() {
     assert!((mm - 1.07).abs() < 0.01, "{mm}");
     let out = scanhil(&["trajectory", "--raster", "2"]);
     assert!(!out.status.success());
+}
+
+#[test]
+fn a_negative_number_is_a_value_for_every_numeric_flag() {
+    // A phase of -90 degrees is a trajectory like any other.
+    let out = scanhil(&["trajectory", "--lissajous", "52,27", "--phase-deg", "-90"]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(json["figures"]["kind"], "lissajous");
+    // An override that cannot run reaches the scenario's validation, which names the field.
+    let scenario =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenarios/test-loop-small.json");
+    let dir = tempfile::tempdir().unwrap();
+    let out = scanhil(&[
+        "scan",
+        scenario.to_str().unwrap(),
+        "--duration-s",
+        "-1",
+        "--out",
+        dir.path().join("out").to_str().unwrap(),
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("field `duration_s`: -1e0 s must be positive"),
+        "{stderr}"
+    );
+    // An integer flag says its value is out of range, naming the flag.
+    let out = scanhil(&[
+        "scan",
+        scenario.to_str().unwrap(),
+        "--watchdog-periods",
+        "-1",
+    ]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("invalid value '-1' for '--watchdog-periods"),
+        "{stderr}"
+    );
 }
 
 #[test]

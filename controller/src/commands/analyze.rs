@@ -35,7 +35,7 @@ pub struct Args {
     compare_methods: bool,
     /// Simulated time for --compare-methods, s (the error is taken over the last second;
     /// at most 60 s).
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
     compare_duration_s: f64,
 }
 

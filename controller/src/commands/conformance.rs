@@ -27,13 +27,13 @@ pub struct Args {
     #[arg(long)]
     scene: Option<PathBuf>,
     /// The control rate the device runs at, in Hz (at most [`MAX_RATE_HZ`]).
-    #[arg(long, default_value_t = 20_000.0)]
+    #[arg(long, default_value_t = 20_000.0, allow_negative_numbers = true)]
     rate_hz: f64,
     /// Missed answers before a link timeout (also what the device is expected to use).
-    #[arg(long, default_value_t = 50)]
+    #[arg(long, default_value_t = 50, allow_negative_numbers = true)]
     watchdog_periods: u32,
     /// Wall-clock allowance per answer, in seconds.
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
     answer_allowance_s: f64,
     /// Write the results as JUnit XML here.
     #[arg(long)]

@@ -45,10 +45,10 @@ pub struct Args {
     #[arg(long, value_enum)]
     pub format: Format,
     /// ILD: start of the measuring range, mm (default: ILD 2300-100).
-    #[arg(long, default_value_t = MeasuringRange::ILD2300_100.start_mm)]
+    #[arg(long, default_value_t = MeasuringRange::ILD2300_100.start_mm, allow_negative_numbers = true)]
     pub measuring_range_start_mm: f64,
     /// ILD: length of the measuring range, mm (default: ILD 2300-100).
-    #[arg(long, default_value_t = MeasuringRange::ILD2300_100.span_mm)]
+    #[arg(long, default_value_t = MeasuringRange::ILD2300_100.span_mm, allow_negative_numbers = true)]
     pub measuring_range_span_mm: f64,
 }
 

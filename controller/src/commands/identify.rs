@@ -69,43 +69,43 @@ pub struct Args {
     #[arg(long, value_enum, default_value = "alpha")]
     axis: SensingAxis,
     /// Lowest frequency, Hz.
-    #[arg(long, default_value_t = 2.0)]
+    #[arg(long, default_value_t = 2.0, allow_negative_numbers = true)]
     from_hz: f64,
     /// Highest frequency, Hz.
-    #[arg(long, default_value_t = 2000.0)]
+    #[arg(long, default_value_t = 2000.0, allow_negative_numbers = true)]
     to_hz: f64,
     /// Number of log-spaced frequencies.
-    #[arg(long, default_value_t = 40)]
+    #[arg(long, default_value_t = 40, allow_negative_numbers = true)]
     points: usize,
     /// Excitation amplitude: input units (A) open loop (default 0.02), mrad of reference closed loop (default 0.1; keep the coil command below its limit at high frequency).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     amplitude: Option<f64>,
     /// Stepped or swept sine.
     #[arg(long, value_enum, default_value = "stepped")]
     excitation: Excitation,
     /// Duration of one sweep (--excitation swept), s.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
     sweep_s: f64,
     /// Rest after each sweep (--excitation swept), s: several decay times of the plant or loop.
-    #[arg(long, default_value_t = 2.5)]
+    #[arg(long, default_value_t = 2.5, allow_negative_numbers = true)]
     quiet_s: f64,
     /// Settling time before each measurement, s (the plant's decay time is 0.22 s).
-    #[arg(long, default_value_t = 2.5)]
+    #[arg(long, default_value_t = 2.5, allow_negative_numbers = true)]
     settle_s: f64,
     /// Whole periods per averaging block.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, allow_negative_numbers = true)]
     cycles: u32,
     /// Averaging blocks per frequency, or sweeps (>= 2 for a meaningful coherence).
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, allow_negative_numbers = true)]
     blocks: u32,
     /// White angle noise of the nominal plant, urad RMS.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     noise_urad: f64,
     /// Seed of the noise.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, allow_negative_numbers = true)]
     seed: u64,
     /// Control rate when no controller is given, Hz.
-    #[arg(long, default_value_t = 20_000.0)]
+    #[arg(long, default_value_t = 20_000.0, allow_negative_numbers = true)]
     rate_hz: f64,
     /// Write the JSON result here (it is printed otherwise).
     #[arg(long)]

@@ -76,14 +76,14 @@ pub struct Args {
     #[arg(long, default_value_t = 0.3, allow_negative_numbers = true)]
     ransac_threshold_mm: f64,
     /// RANSAC seed.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
     seed: u64,
     /// Score the z_s map against the surface of this scene file (ground truth), after each
     /// of --progressive-steps parts of the scan.
     #[arg(long)]
     truth_scene: Option<PathBuf>,
     /// Checkpoints of coverage and error against scan time (1 to 1000).
-    #[arg(long, default_value_t = 10)]
+    #[arg(long, default_value_t = 10, allow_negative_numbers = true)]
     progressive_steps: usize,
     /// The rig description: scanner setup, calibration and sensor range (default: the
     /// paper's setup, no correction, the ILD 2300-100's range).

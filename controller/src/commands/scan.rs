@@ -33,13 +33,13 @@ pub struct Args {
     #[arg(long, value_enum)]
     timing: Option<TimingArg>,
     /// Scan duration instead of the scenario's, in seconds.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     duration_s: Option<f64>,
     /// Missed periods before a link timeout, instead of the scenario's.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     watchdog_periods: Option<u32>,
     /// A fixed lead-in before the recorded frame instead of the scenario's, in seconds.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     lead_in_s: Option<f64>,
     /// Do not start the emulator: the nodes on --fsm / --sensor are already there (real
     /// hardware, or an emulator started by hand).
@@ -58,17 +58,17 @@ pub struct Args {
     #[arg(long)]
     busy_poll: bool,
     /// Real time: pin the host's loop to this CPU, instead of the scenario's.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     cpu: Option<usize>,
     /// Real time: pin the emulator this scan starts to this CPU, instead of the scenario's.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     emulator_cpu: Option<usize>,
     /// Real time: both loops under SCHED_FIFO at this priority (1 to 99), memory locked.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     sched_fifo_priority: Option<u8>,
     /// Real time: each end's wake-up probe before the loop, in seconds, instead of the
     /// scenario's (0: none).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     probe_s: Option<f64>,
 }
 

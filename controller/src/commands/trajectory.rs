@@ -16,7 +16,7 @@ pub struct Args {
     #[arg(long, value_delimiter = ',', conflicts_with_all = ["raster", "file"])]
     lissajous: Option<Vec<f64>>,
     /// Phase of beta against alpha for --lissajous, degrees.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     phase_deg: f64,
     /// A raster scan: SLOW_HZ,FAST_HZ (the paper's is 2,34).
     #[arg(long, value_delimiter = ',', conflicts_with = "file")]

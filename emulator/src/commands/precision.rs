@@ -23,10 +23,10 @@ pub struct Args {
     #[arg(long)]
     scene: Option<PathBuf>,
     /// Simulated time per run, in s.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, default_value_t = 0.1, allow_negative_numbers = true)]
     duration_s: f64,
     /// The largest sub-step count tried (powers of two from 1).
-    #[arg(long, default_value_t = 256)]
+    #[arg(long, default_value_t = 256, allow_negative_numbers = true)]
     max_substeps: u32,
     /// Print JSON instead of a table.
     #[arg(long)]

@@ -31,19 +31,19 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = TimingMode::Lockstep)]
     timing: TimingMode,
     /// Overrides the scene's seed.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     seed: Option<u64>,
     /// Missed periods before the watchdog zeroes the coil currents and reports a link timeout.
-    #[arg(long, default_value_t = 200)]
+    #[arg(long, default_value_t = 200, allow_negative_numbers = true)]
     watchdog_periods: u32,
     /// In lockstep, the wall-clock allowance per missed period, in seconds.
-    #[arg(long, default_value_t = 0.01)]
+    #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
     lockstep_answer_allowance_s: f64,
     /// Real time: stop after this many seconds (default: until the link closes).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     duration_s: Option<f64>,
     /// Status/heartbeat frames per second (of loop time).
-    #[arg(long, default_value_t = DEFAULT_HEARTBEAT_HZ)]
+    #[arg(long, default_value_t = DEFAULT_HEARTBEAT_HZ, allow_negative_numbers = true)]
     heartbeat_hz: f64,
     /// A conformance test aid: break this protocol rule on purpose (lockstep only; see
     /// docs/loop.md). Hidden from --help: no real use wants a broken node.
@@ -57,13 +57,13 @@ pub struct Args {
     #[arg(long)]
     busy_poll: bool,
     /// Real time: pin the loop's thread to this CPU.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     cpu: Option<usize>,
     /// Real time: run the loop under SCHED_FIFO at this priority (1 to 99), memory locked.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     sched_fifo_priority: Option<u8>,
     /// Real time: run the wake-up probe for this long before the loop, in seconds (0: none).
-    #[arg(long, default_value_t = DEFAULT_PROBE_S)]
+    #[arg(long, default_value_t = DEFAULT_PROBE_S, allow_negative_numbers = true)]
     probe_s: f64,
 }
 

@@ -29,7 +29,7 @@ pub struct Args {
     amplitude: f64,
     /// How many control periods to run (at most 1 000 000: the whole response is held and
     /// printed).
-    #[arg(long, default_value_t = 2000)]
+    #[arg(long, default_value_t = 2000, allow_negative_numbers = true)]
     samples: u64,
     /// Print JSON instead of a table.
     #[arg(long)]

@@ -37,7 +37,7 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
         /// Worker threads (default: one per core).
-        #[arg(long)]
+        #[arg(long, allow_negative_numbers = true)]
         jobs: Option<usize>,
     },
     /// Write the variants' files only; print their scenario files.
