@@ -2,10 +2,10 @@
 
 use proptest::prelude::*;
 use scanhil_controller::imaging::ply::{
-    PlyEncoding, PlyError, PointCloud, VERTEX_PROPERTIES, read_ply, read_ply_file,
-    read_point_cloud, read_point_cloud_file, write_ply, write_ply_file,
+    PlyEncoding, PlyError, VERTEX_PROPERTIES, read_ply, read_ply_file, read_point_cloud,
+    read_point_cloud_file, write_ply, write_ply_file,
 };
-use scanhil_controller::imaging::reconstruct::{GeometryModel, ScanPoint};
+use scanhil_controller::imaging::reconstruct::{GeometryModel, PointCloud, ScanPoint};
 
 fn cloud(n: usize, model: GeometryModel) -> PointCloud {
     let points = (0..n)

@@ -28,7 +28,7 @@
 use std::io::{self, Write};
 use std::path::Path;
 
-use super::reconstruct::{GeometryModel, ScanPoint, model_from_name};
+use super::reconstruct::{GeometryModel, PointCloud, ScanPoint, model_from_name};
 
 /// The vertex properties scanhil writes, in order.
 pub const VERTEX_PROPERTIES: [&str; 7] = [
@@ -65,15 +65,6 @@ impl PlyEncoding {
             PlyEncoding::BinaryBigEndian => "binary_big_endian",
         }
     }
-}
-
-/// Reconstructed points together with the model that produced them.
-#[derive(Debug, Clone, PartialEq)]
-pub struct PointCloud {
-    /// The geometry model the points were reconstructed with.
-    pub model: GeometryModel,
-    /// The points, in sample order.
-    pub points: Vec<ScanPoint>,
 }
 
 /// Why a PLY file could not be written or read.

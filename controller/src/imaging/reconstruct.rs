@@ -5,8 +5,6 @@
 pub use scanhil_geometry::GeometryModel;
 use scanhil_geometry::Scanner;
 
-use super::ply::PointCloud;
-
 /// One recorded sample: the mechanical mirror angles and the sensor's distance.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ScanSample {
@@ -47,6 +45,15 @@ pub const DEFAULT_MODEL: GeometryModel = GeometryModel::SmallAngle;
 #[must_use]
 pub fn model_from_name(name: &str) -> Option<GeometryModel> {
     GeometryModel::ALL.into_iter().find(|m| m.name() == name)
+}
+
+/// Reconstructed points together with the model that produced them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PointCloud {
+    /// The geometry model the points were reconstructed with.
+    pub model: GeometryModel,
+    /// The points, in sample order.
+    pub points: Vec<ScanPoint>,
 }
 
 /// Reconstructed points, the model that made them, and what was left out.
