@@ -21,7 +21,7 @@
 use nalgebra::{Point3, Vector3};
 
 use crate::ScannerSetup;
-use crate::scanner::BeamRay;
+use crate::beam_ray::BeamRay;
 
 /// Direction of the laser leaving the sensor (before the mirror): -y.
 pub const LASER_DIRECTION: Vector3<f64> = Vector3::new(0.0, -1.0, 0.0);

@@ -27,15 +27,18 @@
 //! - [`small_angle`]: the paper's eq. 1-3, with the readings in `docs/paper-readings.md`.
 //! - [`exact`]: the mirror plane and the exact reflection of the laser.
 //! - [`receiver`]: the triangulation receiver's view of the spot, for shading.
+//! - [`beam_ray`]: [`BeamRay`], the beam after the mirror for one deflection.
 //! - [`scanner`]: [`Scanner`], the model behind one enum: beam rays and reconstruction.
 
+pub mod beam_ray;
 pub mod exact;
 pub mod receiver;
 pub mod scanner;
 pub mod setup;
 pub mod small_angle;
 
+pub use beam_ray::BeamRay;
 pub use nalgebra::{Point3, Vector3};
 pub use receiver::ReceiverPath;
-pub use scanner::{BeamRay, GeometryModel, Scanner};
+pub use scanner::{GeometryModel, Scanner};
 pub use setup::{ScannerSetup, SetupError};

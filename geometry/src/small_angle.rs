@@ -14,7 +14,7 @@
 use nalgebra::{Point3, Vector3};
 
 use crate::ScannerSetup;
-use crate::scanner::BeamRay;
+use crate::beam_ray::BeamRay;
 
 /// The intermediate quantities of eq. 1-2 for one mirror deflection.
 #[derive(Debug, Clone, Copy, PartialEq)]
