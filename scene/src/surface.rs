@@ -14,14 +14,16 @@ pub mod cell_grid;
 pub mod duplo;
 pub mod face;
 pub mod height_map;
+pub mod hit;
 
 use std::path::{Path, PathBuf};
 
 use nalgebra::{Point3, Rotation3, Vector3};
 use serde::{Deserialize, Serialize};
 
-pub use face::{Face, Hit};
+pub use face::Face;
 use height_map::{HeightField, HeightGrid};
+pub use hit::Hit;
 
 /// y of the resting beam's spot for the paper's setup (`-y_FSM`), mm: the default centre.
 pub const REST_SPOT_Y_MM: f64 = -10.0;

@@ -1,6 +1,6 @@
-//! A uniform grid of cells in x and y, one face (often a [`Face::Group`]) per cell: a ray
-//! tests only the cells its path crosses inside the grid's box, however many cells there are
-//! (the Duplo brick's studs sit one per cell).
+//! A uniform grid of cells in x and y, one face per cell (often a group of faces): a ray tests only the cells its path crosses inside the grid's box, however many
+//! cells there are (the Duplo brick's studs sit one per cell). The grid is a spatial index
+//! only: it holds its cells' faces whatever they are, and never looks into them.
 //!
 //! Cells are found conservatively (the path's x-y extent inside the padded box, widened by
 //! [`super::bounds::PAD_MM`]), so the grid answers as the flat list of its faces.
@@ -8,11 +8,10 @@
 use nalgebra::{Point3, Vector3};
 
 use super::bounds::{Aabb, PAD_MM};
-use super::face::Face;
 
 /// Faces sorted into a `columns` x `rows` grid of `cell_mm` square cells.
 #[derive(Debug, Clone, PartialEq)]
-pub struct CellGrid {
+pub struct CellGrid<F> {
     /// A box around every cell's face (the grid's x-y extent and the faces' z range).
     bounds: Aabb,
     /// Smallest x and y of cell (0, 0), mm.
@@ -24,10 +23,10 @@ pub struct CellGrid {
     /// Cells along y.
     rows: usize,
     /// One face per cell, column-major: cell (i, j) at `i * rows + j`.
-    cells: Vec<Face>,
+    cells: Vec<F>,
 }
 
-impl CellGrid {
+impl<F> CellGrid<F> {
     /// A grid of `cells` (column-major, `columns * rows` of them, each face inside its cell)
     /// with cell (0, 0) starting at `corner_mm`, whose faces lie between `z_min` and `z_max`.
     ///
@@ -40,8 +39,8 @@ impl CellGrid {
         cell_mm: f64,
         (columns, rows): (usize, usize),
         (z_min, z_max): (f64, f64),
-        cells: Vec<Face>,
-    ) -> CellGrid {
+        cells: Vec<F>,
+    ) -> CellGrid<F> {
         assert!(cells.len() == columns * rows && cell_mm > 0.0);
         let far = |n: usize, start: f64| start + n as f64 * cell_mm;
         CellGrid {
@@ -59,7 +58,7 @@ impl CellGrid {
 
     /// Every cell's face, column-major.
     #[must_use]
-    pub fn faces(&self) -> &[Face] {
+    pub fn faces(&self) -> &[F] {
         &self.cells
     }
 
@@ -71,7 +70,7 @@ impl CellGrid {
         dir: &Vector3<f64>,
         t_min: f64,
         t_max: f64,
-    ) -> impl Iterator<Item = &Face> {
+    ) -> impl Iterator<Item = &F> {
         let span = self.bounds.span(origin, dir, t_min, t_max);
         let (columns, rows) = span.map_or((0..0, 0..0), |(enter, exit)| {
             let (a, b) = (origin + enter * dir, origin + exit * dir);

@@ -13,21 +13,7 @@ use nalgebra::{Point3, Vector3};
 use super::bounds::Aabb;
 use super::cell_grid::CellGrid;
 use super::height_map::HeightField;
-
-/// Nearest distance along a ray that counts as a hit; smaller ones are the ray's own start
-/// point (a reflection path starts on the surface), in mm.
-pub const T_MIN_MM: f64 = 1e-6;
-
-/// A ray crossing a face: how far along the ray, where, and the outward unit normal there.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Hit {
-    /// Distance along the (unit-direction) ray, mm.
-    pub t_mm: f64,
-    /// The point hit, mm.
-    pub point_mm: Point3<f64>,
-    /// Outward unit normal of the surface at the point.
-    pub normal: Vector3<f64>,
-}
+use super::hit::{Hit, T_MIN_MM};
 
 /// One face of a surface.
 #[derive(Debug, Clone, PartialEq)]
@@ -94,7 +80,7 @@ pub enum Face {
         faces: Vec<Face>,
     },
     /// Faces in a uniform x-y grid, tested only in the cells the ray crosses.
-    Grid(Box<CellGrid>),
+    Grid(Box<CellGrid<Face>>),
 }
 
 impl Face {

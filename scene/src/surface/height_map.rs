@@ -11,7 +11,7 @@ use std::path::Path;
 use nalgebra::{Point3, Vector3};
 
 use super::SurfaceError;
-use super::face::{Hit, T_MIN_MM};
+use super::hit::{Hit, T_MIN_MM};
 
 /// Longest ray stretch walked for a ray that runs level with the map, mm.
 const LEVEL_RAY_LIMIT_MM: f64 = 1.0e4;
