@@ -7,10 +7,10 @@ use std::io;
 use std::path::Path;
 use std::time::Duration;
 
-use scanhil_emulator::serve::link_failure::end_on_link_error;
 use scanhil_emulator::serve::lockstep_node::last_frames;
 use scanhil_emulator::serve::mirror_node::MirrorNode;
 use scanhil_emulator::serve::sensor_port::SensorPort;
+use scanhil_emulator::serve::wind_down::end_on_link_error;
 use scanhil_emulator::serve::{RunEnd, ServeLinks, ServeOutcome, load_plant};
 use scanhil_protocol::link::{CanLink, LinkError, LinkUri, PtyPair, Role};
 use scanhil_protocol::message::{FaultKind, Message, NodeId, NodeState};

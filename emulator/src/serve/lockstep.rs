@@ -15,10 +15,10 @@
 //! reading (its line full) ends the run as the watchdog does (coils zeroed, LinkTimeout fault
 //! queued, `ended_by: host_stopped_reading`, exit 3), instead of leaving the node blocked in a
 //! write with current on the coils. The node's last frames never wait either
-//! ([`send_last_frames`]).
+//! ([`super::wind_down::send_last_frames`]).
 //!
 //! A link error ends this loop and comes back to `serve`, which ends the run on it
-//! ([`super::link_failure`]): the host's hang-up finishes it; a failure (SocketCAN bus-off, an
+//! ([`super::wind_down`]): the host's hang-up finishes it; a failure (SocketCAN bus-off, an
 //! OS error on a line, the sensor's line failing) zeroes the coils as the watchdog does,
 //! attempts the node's fault frame and exits 3 with the reason in the summary.
 
@@ -29,10 +29,10 @@ use anyhow::bail;
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::link::Watchdog;
 
-use super::link_failure::{wind_down, with_wind_down};
 use super::lockstep_node::{LockstepNode, NodeReply, NodeSend};
 use super::mirror_node::MirrorNode;
 use super::misbehaviour::{Answer, LATE_ANSWER_ALLOWANCES, Misbehaving};
+use super::wind_down::{linger, wind_down, with_wind_down};
 use super::{LoopReport, RunEnd, ServeConfig, ServeLinks, ServeOutcome};
 
 /// Runs the lockstep loop until the controller hangs up, closes the SLCAN channel, ends the run
@@ -43,7 +43,7 @@ use super::{LoopReport, RunEnd, ServeConfig, ServeLinks, ServeOutcome};
 ///
 /// # Errors
 /// A link error, the host's hang-up included (`serve` ends the run on it as
-/// [`super::link_failure::end_on_link_error`] says), a plant error (non-finite command), a frame
+/// [`super::wind_down::end_on_link_error`] says), a plant error (non-finite command), a frame
 /// that cannot be encoded, or `--misbehave dies-on-garbage` dying.
 pub async fn run(
     node: &mut MirrorNode,
@@ -187,59 +187,10 @@ async fn sleep_or_never(duration: Option<Duration>) {
     }
 }
 
-/// How long the node keeps the link open after its last frames, so the host can read them
-/// (closing a pty drops what the other end has not read yet).
-pub const LINGER: Duration = Duration::from_secs(2);
-
-/// How long each of the node's last frames may wait for a full line before it is left queued.
-pub const LAST_FRAME_ALLOWANCE: Duration = Duration::from_millis(2);
-
-/// Sends the node's last frames (its fault and status) without letting a full line hold it:
-/// a frame the line does not take within [`LAST_FRAME_ALLOWANCE`] stays queued in the link
-/// and goes out while [`linger`] reads, if the host reads at all. A host that has hung up
-/// is no error here.
-///
-/// # Errors
-/// A link error other than the host's hang-up.
-pub async fn send_last_frames(links: &mut ServeLinks, frames: &[CanFrame]) -> anyhow::Result<()> {
-    for frame in frames {
-        match tokio::time::timeout(LAST_FRAME_ALLOWANCE, links.fsm.send(frame)).await {
-            Err(_) | Ok(Ok(())) => {}
-            Ok(Err(error)) if RunEnd::from_link_error(&error).is_some() => return Ok(()),
-            Ok(Err(error)) => return Err(error.into()),
-        }
-    }
-    Ok(())
-}
-
 /// The reason given when the host left the node's frames unread for `waited`.
 #[must_use]
 pub fn host_stopped_reading(line: &str, waited: Duration) -> String {
     format!(
         "the host stopped reading {line}: the node's frames could not be written for {waited:?}"
     )
-}
-
-/// Keeps the link open, ignoring what arrives, until the host hangs up, closes the channel, or
-/// [`LINGER`] passes. It reads without ever waiting on a write: when the host is itself blocked
-/// writing into a full line (it was frozen while the node kept sending), draining its frames
-/// unblocks it, and the node's queued frames go out as the host reads (a blocking write here
-/// would deadlock both ends).
-///
-/// # Errors
-/// A link error other than the hang-up.
-pub async fn linger(links: &mut ServeLinks) -> anyhow::Result<()> {
-    let deadline = tokio::time::Instant::now() + LINGER;
-    while tokio::time::Instant::now() < deadline {
-        match links.fsm.try_recv() {
-            Ok(Some(_)) => {}
-            Ok(None) => tokio::time::sleep(Duration::from_millis(1)).await,
-            Err(error) if RunEnd::from_link_error(&error).is_some() => return Ok(()),
-            Err(error) => return Err(error.into()),
-        }
-        if !links.fsm.channel_open() {
-            return Ok(());
-        }
-    }
-    Ok(())
 }

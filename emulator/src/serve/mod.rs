@@ -7,13 +7,13 @@
 //! - [`lockstep_node`]: the node's answers to the controller's frames in lockstep (no I/O).
 //! - [`lockstep`]: the controller's Step frame advances the plant one period.
 //! - [`realtime`]: this emulator is the clock master on the wall clock.
-//! - [`link_failure`]: how a link error ends either loop (coils zeroed, last frames, reason).
+//! - [`wind_down`]: how either loop ends: the node's last frames, the linger, and the end on
+//!   a link error (coils zeroed, last frames, reason).
 //! - [`misbehaviour`]: deliberately non-conforming nodes for conformance tests (lockstep).
 //!
 //! The process speaks on stdout in JSON lines: `{"event":"ready",...}` once the links are
 //! open (with the paths of any pty it created), and `{"event":"summary",...}` at the end.
 
-pub mod link_failure;
 pub mod lockstep;
 pub mod lockstep_node;
 pub mod mirror_node;
@@ -21,6 +21,7 @@ pub mod misbehaviour;
 pub mod realtime;
 pub mod sensor_commands;
 pub mod sensor_port;
+pub mod wind_down;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -183,7 +184,7 @@ pub struct ServeLinks {
 
 /// Loads the scene, opens the links, prints the ready line, runs, prints the summary.
 ///
-/// A link error ends the run as [`link_failure::end_on_link_error`] says: the host's hang-up
+/// A link error ends the run as [`wind_down::end_on_link_error`] says: the host's hang-up
 /// finishes it, a failure (bus-off, an I/O error) zeroes the coils, attempts the node's fault
 /// frame and ends with [`ServeOutcome::LinkFailed`] and the reason in the summary.
 ///
@@ -258,7 +259,7 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
         };
         let mut report = match served {
             Ok(report) => report,
-            Err(error) => link_failure::end_on_link_error(&mut node, &mut links, error).await?,
+            Err(error) => wind_down::end_on_link_error(&mut node, &mut links, error).await?,
         };
         if let (Some(scheduling), Some(timing)) = (scheduling_report, report.timing.as_object_mut())
         {

@@ -29,12 +29,12 @@ use scanhil_protocol::link::LinkError;
 use scanhil_protocol::loop_timing::{MissedDeadline, PeriodRecorder};
 use scanhil_protocol::message::{Message, MessageError};
 
-use super::link_failure::{end_on_link_error, wind_down, with_wind_down};
 use super::lockstep::host_stopped_reading;
 use super::lockstep_node::{
     angle_frame, fault_frame, last_frames, periods_per_heartbeat, status_frame,
 };
 use super::mirror_node::{MirrorNode, NodeOutput};
+use super::wind_down::{end_on_link_error, wind_down, with_wind_down};
 use super::{LoopReport, RunEnd, ServeConfig, ServeLinks, ServeOutcome};
 
 /// How long one period's frames may take to go out before they are dropped.
