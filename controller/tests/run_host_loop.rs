@@ -5,7 +5,8 @@ use std::path::Path;
 use std::time::Duration;
 
 use scanhil_controller::run::host_inbox::HostInbox;
-use scanhil_controller::run::host_loop::{Heard, HostAction, HostLoop, LoopError, LoopRecord};
+use scanhil_controller::run::host_loop::{Heard, HostAction, HostLoop, LoopRecord};
+use scanhil_controller::run::loop_error::LoopError;
 use scanhil_controller::scan_controller::ScanController;
 use scanhil_controller::settings::ControllerSettings;
 use scanhil_controller::trajectory::Trajectory;

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use scanhil_controller::rig::RigMirror;
 use scanhil_controller::run::plan::ScanPlan;
-use scanhil_controller::run::power_guard::PowerPolicy;
+use scanhil_controller::run::scenario::PowerPolicy;
 use scanhil_controller::run::scenario::Scenario;
 use scanhil_protocol::message::FaultKind;
 

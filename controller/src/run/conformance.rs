@@ -37,7 +37,8 @@ use scanhil_protocol::message::FaultKind;
 use scanhil_protocol::plant_units::{ActuatorPair, FULL_RANGE_DEG, SensingPair};
 use scanhil_protocol::slcan::SlcanMessage;
 
-use super::mirror_link::{LoopError, MirrorLink};
+use super::loop_error::LoopError;
+use super::mirror_link::MirrorLink;
 use super::sensor_link::SensorLink;
 use super::sensor_setup::{COMMAND_TIMEOUT, stop_output};
 

@@ -8,7 +8,7 @@ use scanhil_protocol::ild::IldValue;
 use scanhil_protocol::message::{FaultKind, Message, MessageError, NodeId, NodeState};
 use scanhil_protocol::plant_units::{FULL_RANGE_DEG, SensingPair};
 
-use super::host_loop::LoopError;
+use super::loop_error::LoopError;
 
 /// A status or fault frame the node sent, with the loop time it was received at. Every fault
 /// is one; of the status frames, those that say something: a node's first, every change of

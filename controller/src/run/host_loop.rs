@@ -12,8 +12,6 @@
 //!
 //! [`super::lockstep`] runs it over a real link; the `scanhil-lab` crate runs it in process.
 
-use std::time::Duration;
-
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::link::LinkError;
 use scanhil_protocol::message::{
@@ -21,69 +19,14 @@ use scanhil_protocol::message::{
 };
 use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
+use super::controller_timing::ControllerTiming;
 use super::host_inbox::{HostInbox, plausible_angles};
+use super::loop_error::LoopError;
 use super::pairing::{AngleTrack, ArrivalClock};
 use super::power_backoff::{BackoffLog, PowerBackoff};
-use super::realtime::ControllerTiming;
 use super::tracking::TrackingRecorder;
 use crate::scan_controller::ScanController;
 use crate::trajectory::Trajectory;
-
-/// Why the loop stopped early.
-#[derive(Debug, thiserror::Error)]
-pub enum LoopError {
-    /// No answer within the watchdog's allowance.
-    #[error(
-        "link timeout on {link}: no angle reading for period {period} within {waited:?} (watchdog: {periods} periods)"
-    )]
-    LinkTimeout {
-        /// The link.
-        link: String,
-        /// The period waited for.
-        period: u64,
-        /// The watchdog's periods.
-        periods: u32,
-        /// The wall-clock time waited.
-        waited: Duration,
-    },
-    /// The node stopped taking frames: a send did not go out within the watchdog's allowance
-    /// (a node that no longer reads its line fills it, and the write would wait forever).
-    #[error(
-        "link timeout on {link}: the frames of period {period} could not be sent within {waited:?} (the node stopped reading)"
-    )]
-    SendTimeout {
-        /// The link.
-        link: String,
-        /// The period whose frames were being sent.
-        period: u64,
-        /// The wall-clock time waited.
-        waited: Duration,
-    },
-    /// A node reported a fault that ends the run (its own link timeout).
-    #[error("{link}: the {node:?} node reported {kind:?} at step {step} (mod 2^16)")]
-    NodeFault {
-        /// The link.
-        link: String,
-        /// The node.
-        node: NodeId,
-        /// The fault.
-        kind: FaultKind,
-        /// Its step counter.
-        step: u16,
-    },
-    /// A message could not be encoded.
-    #[error("cannot encode a frame: {0}")]
-    Encode(String),
-    /// A signal (Ctrl-C, SIGTERM, SIGHUP) stopped the scan.
-    #[error("interrupted by {signal}")]
-    Interrupted {
-        /// The signal's name.
-        signal: &'static str,
-    },
-    /// The transport failed (hang-up: the emulator or adapter went away).
-    #[error(transparent)]
-    Link(#[from] LinkError),
-}
 
 /// What a loop run produced. Its memory does not grow with the run's length, except for the
 /// frame's angle history kept to pair sensor samples with ([`Self::keeping_angles`]; the

@@ -6,10 +6,10 @@
 
 use scanhil_protocol::can::CanFrame;
 
-pub use super::host_loop::LoopRecord;
-use super::host_loop::{Heard, HostAction, HostLoop};
+use super::host_loop::{Heard, HostAction, HostLoop, LoopRecord};
 use super::interrupt::Interrupt;
-use super::mirror_link::{LoopError, MirrorLink, STOP_SEND_ALLOWANCE};
+use super::loop_error::LoopError;
+use super::mirror_link::{MirrorLink, STOP_SEND_ALLOWANCE};
 use super::pairing::ArrivalClock;
 use super::progress::Progress;
 use super::sensor_link::SensorLink;

@@ -9,10 +9,10 @@ use scanhil_protocol::link::{CanLink, LinkError, VirtualClock};
 use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
 pub use super::host_inbox::{CanDistance, HostInbox, MirrorLinkCounters, NodeEvent};
-pub use super::host_loop::LoopError;
 use super::host_loop::{StampedFrame, coil_command_frame, period_frames};
 use super::interrupt::Interrupt;
 use super::link_faults::{InjectedFrameFaults, LinkFaults};
+pub use super::loop_error::LoopError;
 
 /// How long the zero command and the channel's close may take on the way out of a stopped
 /// run before they are given up (the node may have stopped reading its line).

@@ -8,6 +8,7 @@
 //! - [`emulator_process`]: locating and starting `scanhil-emulator serve`.
 //! - [`host_loop`]: the host's lockstep loop as a state machine without I/O.
 //! - [`host_inbox`]: what the host does with each received frame (no I/O).
+//! - [`loop_error`]: why a loop stopped early, for the pure loop, its links and its shells.
 //! - [`mirror_link`]: the mirror node seen from the controller: exchanges, status, faults,
 //!   watchdog.
 //! - [`sensor_link`]: the ILD stream seen from the controller, with its raw recording.
@@ -15,6 +16,8 @@
 //! - [`bus_load`]: refusing a loop that cannot fit on a link's bit rate.
 //! - [`chunked`]: what a run keeps per sample, in chunks freed as imaging passes them.
 //! - [`lockstep`], [`realtime`]: the two loops.
+//! - [`controller_timing`]: the host's real-time settings, wake-up probe and timing figures,
+//!   and the report's verdicts on them (who missed each deadline, jitter against the probe).
 //! - [`interrupt`]: Ctrl-C, SIGTERM and SIGHUP stop the loop like any early stop.
 //! - [`plan`]: what a scan runs, worked out before its links open: controller, power check,
 //!   [`lead_in`] before the recorded frame, predicted tracking error.
@@ -34,6 +37,7 @@
 pub mod bus_load;
 pub mod chunked;
 pub mod conformance;
+pub mod controller_timing;
 pub mod emulator_process;
 pub mod host_inbox;
 pub mod host_loop;
@@ -41,6 +45,7 @@ pub mod interrupt;
 pub mod lead_in;
 pub mod link_faults;
 pub mod lockstep;
+pub mod loop_error;
 pub mod mirror_link;
 pub mod out_folder;
 pub mod output;
@@ -129,7 +134,7 @@ pub enum ScanEnd {
 impl ScanEnd {
     /// How the loop that made `record` ended.
     #[must_use]
-    pub fn of(record: &lockstep::LoopRecord) -> ScanEnd {
+    pub fn of(record: &host_loop::LoopRecord) -> ScanEnd {
         match &record.stopped_by {
             None => ScanEnd::Complete,
             Some(error) => ScanEnd::Stopped(error.to_string()),
@@ -214,7 +219,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
     // Real time: this thread runs the loop; it is set up, and the machine's wake-up latency
     // measured with the same settings, before the links open.
     let host_scheduling = (scenario.timing.mode == TimingMode::Realtime)
-        .then(|| realtime::HostScheduling::set_up(&scenario.timing, period_s));
+        .then(|| controller_timing::HostScheduling::set_up(&scenario.timing, period_s));
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()

@@ -24,8 +24,8 @@ use scanhil_report::{Axis, Chart, Series, draw_charts};
 use scanhil_scene::truth::TrueScene;
 
 use super::chunked::Chunked;
+use super::host_loop::LoopRecord;
 use super::link_faults::InjectedFrameFaults;
-use super::lockstep::LoopRecord;
 use super::mirror_link::{MirrorLinkCounters, NodeEvent};
 use super::output_failures::OutputFailures;
 use super::pairing::{ArrivalBound, ArrivalClock, CounterUnwrapper, FramePairing, SensorClock};
@@ -202,9 +202,11 @@ pub fn write(
     // Real time: the emulator's list of missed deadlines becomes their attribution.
     let mut emulator = run.emulator_summary.clone();
     let verdicts = match (&record.controller_timing, emulator.as_mut()) {
-        (Some(controller), Some(emulator)) => {
-            super::realtime::verdicts(controller, &mut emulator["summary"]["timing"], period_s)
-        }
+        (Some(controller), Some(emulator)) => super::controller_timing::verdicts(
+            controller,
+            &mut emulator["summary"]["timing"],
+            period_s,
+        ),
         _ => serde_json::Value::Null,
     };
     let report = serde_json::json!({

@@ -13,64 +13,15 @@
 
 use anyhow::bail;
 use scanhil_protocol::plant_units::AMPS_PER_INPUT_UNIT;
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
 use super::power_backoff::PowerBackoff;
-use super::scenario::Scenario;
+use super::scenario::{PowerPolicy, Scenario};
 use crate::loop_analysis::NominalLoop;
 use crate::power_budget::{PowerEstimate, estimate, loop_effort, shrink_factor};
 use crate::scan_controller::ScanController;
 use crate::settings::ControllerSettings;
 use crate::trajectory::Trajectory;
-
-/// What to do with a trajectory whose estimate is over `margin x limit`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum PowerPolicy {
-    /// Scale its amplitudes down to fit.
-    #[default]
-    Shrink,
-    /// Refuse to run it.
-    Refuse,
-    /// Run it as written.
-    Off,
-}
-
-/// A scenario's `power` section.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct PowerConfig {
-    /// Shrink, refuse or off.
-    pub policy: PowerPolicy,
-    /// The share of the rig's power limit a trajectory may use, in (0, 1].
-    pub margin: f64,
-    /// Back off when the node reports its power limit (lockstep loops).
-    pub backoff: bool,
-}
-
-impl Default for PowerConfig {
-    fn default() -> PowerConfig {
-        PowerConfig {
-            policy: PowerPolicy::Shrink,
-            margin: 0.9,
-            backoff: true,
-        }
-    }
-}
-
-impl PowerConfig {
-    /// Checks the margin; on failure the field and why.
-    ///
-    /// # Errors
-    /// A margin outside (0, 1].
-    pub fn check(&self) -> Result<(), (&'static str, String)> {
-        if self.margin.is_finite() && self.margin > 0.0 && self.margin <= 1.0 {
-            Ok(())
-        } else {
-            Err(("power.margin", format!("{} must be in (0, 1]", self.margin)))
-        }
-    }
-}
 
 /// The check's figures (report.json's `power.check`).
 #[derive(Debug, Clone, PartialEq, Serialize)]

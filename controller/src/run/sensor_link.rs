@@ -15,7 +15,7 @@ use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{ByteCapture, LinkError, LinkUri, PtyPair};
 
 use super::chunked::Chunked;
-use super::host_loop::LoopError;
+use super::loop_error::LoopError;
 use super::pairing::{ArrivalBound, CounterUnwrapper};
 
 /// The ILD counter's modulus (18 bits).
