@@ -1,5 +1,5 @@
-//! JSON files (the host's rig descriptions, scenarios and controller settings, a scene's true
-//! surface): read and parsed with errors that name the file and, for a parse error, its line
+//! JSON files (the host's rig descriptions, scenarios and controller settings, the emulator's
+//! scenes and their true surfaces, studies): read and parsed with errors that name the file and, for a parse error, its line
 //! and column. Each file kind checks its own fields after this and adds its own errors.
 
 use std::path::{Path, PathBuf};
@@ -56,4 +56,12 @@ pub fn parse<T: DeserializeOwned>(text: &str, origin: &Path) -> Result<T, JsonFi
         column: error.column(),
         message: error.to_string(),
     })
+}
+
+/// Reads and parses the `kind` file at `path` as a `T`: [`read_text`], then [`parse`].
+///
+/// # Errors
+/// [`JsonFileError`] naming the file (and the line and column of a parse error).
+pub fn read<T: DeserializeOwned>(path: &Path, kind: &'static str) -> Result<T, JsonFileError> {
+    parse(&read_text(path, kind)?, path)
 }

@@ -55,7 +55,7 @@ impl TrueScene {
     /// # Errors
     /// [`TruthError`] naming the file (and line and column for a parse error).
     pub fn from_scene_file(path: &Path) -> Result<TrueScene, TruthError> {
-        let file: SceneTruthFile = json_file::parse(&json_file::read_text(path, "scene")?, path)?;
+        let file: SceneTruthFile = json_file::read(path, "scene")?;
         let config = file.surface.ok_or_else(|| TruthError::NoSurface {
             path: path.to_owned(),
         })?;

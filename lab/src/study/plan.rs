@@ -4,9 +4,8 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
-use scanhil_scene::json_file::{self, JsonFileError};
+use scanhil_scene::json_file;
 use serde::Deserialize;
-use serde::de::DeserializeOwned;
 use serde_json::Value;
 
 /// The most variants one study may expand to: each is a folder of files and a scan.
@@ -53,7 +52,7 @@ impl Study {
     /// document, an empty value list, both or neither of `grid` and `list`, more than
     /// [`MAX_VARIANTS`] variants.
     pub fn load(path: &Path) -> anyhow::Result<Study> {
-        let file: StudyFile = read_json(path, "study")?;
+        let file: StudyFile = json_file::read(path, "study")?;
         let variants = match (file.grid, file.list) {
             (Some(grid), None) => expand_grid(&grid).with_context(|| path.display().to_string())?,
             (None, Some(list)) => list,
@@ -175,7 +174,7 @@ struct BaseDocuments {
 
 impl BaseDocuments {
     fn load(path: &Path) -> anyhow::Result<BaseDocuments> {
-        let scenario = read_json(path, "scenario")?;
+        let scenario = json_file::read(path, "scenario")?;
         Ok(BaseDocuments {
             scenario,
             scenario_dir: path.parent().unwrap_or(Path::new(".")).to_owned(),
@@ -226,7 +225,7 @@ impl BaseDocuments {
                 bail!("the scenario names no `{document}` to change");
             };
             let source = PathBuf::from(source);
-            let mut json: Value = read_json(&source, kind)?;
+            let mut json: Value = json_file::read(&source, kind)?;
             if document == "scene" {
                 absolute_height_map(&mut json, source.parent().unwrap_or(Path::new(".")));
             }
@@ -279,12 +278,6 @@ fn absolute(path: &Path) -> PathBuf {
     std::fs::canonicalize(path)
         .or_else(|_| std::path::absolute(path))
         .unwrap_or_else(|_| path.to_owned())
-}
-
-/// Reads and parses the `kind` JSON file at `path` (errors name the file, and the line and
-/// column of a parse error).
-fn read_json<T: DeserializeOwned>(path: &Path, kind: &'static str) -> Result<T, JsonFileError> {
-    json_file::parse(&json_file::read_text(path, kind)?, path)
 }
 
 fn write_json(path: &Path, value: &Value) -> anyhow::Result<()> {
