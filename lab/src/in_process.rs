@@ -288,7 +288,8 @@ pub fn run_probed(
     let mut outcome = InProcessOutcome {
         run: RunData {
             record,
-            can_distances: inbox.take_distances(),
+            can_distances: inbox.distances_mut().take_samples(),
+            can_arrivals: None,
             mirror_counters: inbox.counters(),
             node_events: inbox.events().to_vec(),
             sensor,
@@ -497,7 +498,7 @@ impl Transport {
     fn finish(
         mut self,
     ) -> anyhow::Result<(
-        Chunked<scanhil_controller::run::sensor_link::CountedSample>,
+        Chunked<scanhil_controller::run::sample_log::CountedSample>,
         scanhil_controller::run::sensor_link::SensorCounters,
     )> {
         if let Some(capture) = &mut self.capture {

@@ -325,7 +325,7 @@ fn the_sensor_losing_its_peak_is_sent_and_seen_as_the_ild_error_values() {
     let mut clean = scenario.clone();
     clean.faults = FaultsConfig::default();
     let clean = run(&clean, None).unwrap();
-    let errors = |samples: &[scanhil_controller::run::sensor_link::CountedSample]| {
+    let errors = |samples: &[scanhil_controller::run::sample_log::CountedSample]| {
         samples
             .iter()
             .filter(|s| matches!(s.value, scanhil_protocol::ild::IldValue::Error(_)))

@@ -4,11 +4,11 @@
 //! malformed and foreign frames are counted. A node's LinkTimeout fault ends the run.
 
 use scanhil_protocol::can::CanFrame;
-use scanhil_protocol::ild::IldValue;
 use scanhil_protocol::message::{FaultKind, Message, MessageError, NodeId, NodeState};
 use scanhil_protocol::plant_units::{FULL_RANGE_DEG, SensingPair};
 
 use super::loop_error::LoopError;
+use super::sample_log::SampleLog;
 
 /// A status or fault frame the node sent, with the loop time it was received at. Every fault
 /// is one; of the status frames, those that say something: a node's first, every change of
@@ -73,9 +73,6 @@ pub fn plausible_angles(angles: SensingPair) -> bool {
         .all(|angle| angle.is_finite() && angle.abs() <= limit_rad)
 }
 
-/// A Distance frame's counter and value, with its arrival (for a real sensor's clock).
-pub type CanDistance = (u32, IldValue, tokio::time::Instant);
-
 /// The received frames of one mirror link, filed.
 #[derive(Debug, Clone)]
 pub struct HostInbox {
@@ -83,7 +80,8 @@ pub struct HostInbox {
     events: Vec<NodeEvent>,
     /// Each node's state in its latest status frame.
     node_states: Vec<(NodeId, NodeState)>,
-    distances: Vec<CanDistance>,
+    /// Distance frames (a sensor on CAN).
+    distances: SampleLog,
     counters: MirrorLinkCounters,
 }
 
@@ -95,7 +93,7 @@ impl HostInbox {
             link: link.to_owned(),
             events: Vec::new(),
             node_states: Vec::new(),
-            distances: Vec::new(),
+            distances: SampleLog::new(),
             counters: MirrorLinkCounters::default(),
         }
     }
@@ -133,11 +131,11 @@ impl HostInbox {
             Message::AngleReading(reading) => return Ok(Some((reading.seq, reading.rad()))),
             Message::Distance(distance) => {
                 self.distances
-                    .push((distance.counter, distance.value, arrived));
+                    .add(Some(distance.counter), distance.value, arrived);
             }
             Message::AnglesDistanceFd { angles, distance } => {
                 self.distances
-                    .push((distance.counter, distance.value, arrived));
+                    .add(Some(distance.counter), distance.value, arrived);
                 return Ok(Some((angles.seq, angles.rad())));
             }
             Message::Status(status) if status.node != NodeId::Controller => {
@@ -247,9 +245,10 @@ impl HostInbox {
         &self.events
     }
 
-    /// Distance frames received so far, in order, with their arrival (taken out).
-    pub fn take_distances(&mut self) -> Vec<CanDistance> {
-        std::mem::take(&mut self.distances)
+    /// The Distance frames received (a sensor on CAN), for the loop to bound the sensor's
+    /// clock by their arrivals and to take the samples at the end.
+    pub fn distances_mut(&mut self) -> &mut SampleLog {
+        &mut self.distances
     }
 
     /// The counters so far.

@@ -22,7 +22,7 @@ use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 use super::controller_timing::ControllerTiming;
 use super::host_inbox::{HostInbox, plausible_angles};
 use super::loop_error::LoopError;
-use super::pairing::{AngleTrack, ArrivalClock};
+use super::pairing::AngleTrack;
 use super::power_backoff::{BackoffLog, PowerBackoff};
 use super::tracking::TrackingRecorder;
 use crate::scan_controller::ScanController;
@@ -54,10 +54,10 @@ pub struct LoopRecord {
     pub stopped_by: Option<LoopError>,
     /// Real time only: the controller's side of the timing.
     pub controller_timing: Option<ControllerTiming>,
-    /// How arrivals map onto the loop's time axis (real time: the earliest reading's arrival
-    /// minus its loop time; lockstep: when each period started), to place a real sensor's
-    /// samples there. `None` when the loop did not keep it (in process, or no angles kept).
-    pub arrival_clock: Option<ArrivalClock>,
+    /// Real time: loop time 0 on the wall clock (the earliest reading's arrival minus its
+    /// loop time), where a real sensor's arrival bounds are placed
+    /// ([`super::pairing::ArrivalBound::counter_zero_s`]). `None` in lockstep and in process.
+    pub wall_clock_epoch: Option<tokio::time::Instant>,
     /// What the power back-off did (None: not active).
     pub power_backoff: Option<BackoffLog>,
     /// Step frames sent again because no reading came within one answer allowance.
@@ -79,7 +79,7 @@ impl LoopRecord {
             saturated_in_lead_in: 0,
             stopped_by: None,
             controller_timing: None,
-            arrival_clock: None,
+            wall_clock_epoch: None,
             power_backoff: None,
             repeated_steps: 0,
         }
@@ -426,6 +426,12 @@ impl<'a> HostLoop<'a> {
     #[must_use]
     pub fn latest_reading(&self) -> SensingPair {
         self.measured
+    }
+
+    /// The inbox so far, to note on its Distance frames' log when a period starts
+    /// ([`super::sample_log::SampleLog::period_started`]).
+    pub fn inbox_mut(&mut self) -> &mut HostInbox {
+        &mut self.inbox
     }
 
     /// The inbox so far.

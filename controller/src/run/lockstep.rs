@@ -10,7 +10,6 @@ use super::host_loop::{Heard, HostAction, HostLoop, LoopRecord};
 use super::interrupt::Interrupt;
 use super::loop_error::LoopError;
 use super::mirror_link::{MirrorLink, STOP_SEND_ALLOWANCE};
-use super::pairing::ArrivalClock;
 use super::progress::Progress;
 use super::sensor_link::SensorLink;
 
@@ -37,16 +36,6 @@ pub async fn run(
         allowance
     };
     let mut sent_at = tokio::time::Instant::now();
-    // When each period's frames started going out: lockstep's arrival clock for Distance
-    // frames on the mirror's link (a sensor on CAN), kept only where they are paired with the
-    // angles (it grows with the run). An ILD line bounds its clock as samples arrive instead
-    // (`SensorLink::period_started`).
-    let keeps_arrivals = host.record().angles.is_some() && matches!(sensor, SensorLink::Elsewhere);
-    let mut period_starts = Vec::with_capacity(if keeps_arrivals {
-        host.record().periods_planned as usize + 1
-    } else {
-        0
-    });
     let mut periods_started = 0;
     loop {
         let received: Result<CanFrame, LoopError> = match host.next_action() {
@@ -54,11 +43,11 @@ pub async fn run(
             HostAction::Send(frames) => {
                 let period = host.record().periods_done;
                 if period == periods_started {
+                    // The sensor's samples (on its line or on CAN) bound its clock by the
+                    // period they arrive in.
                     let now = tokio::time::Instant::now();
                     sensor.period_started(now);
-                    if keeps_arrivals {
-                        period_starts.push(now);
-                    }
+                    host.inbox_mut().distances_mut().period_started(now);
                     periods_started += 1;
                 }
                 if let Err(error) = mirror
@@ -127,11 +116,7 @@ pub async fn run(
             Err(error) => host.on_error(error),
         }
     }
-    let (mut record, inbox) = host.finish();
-    record.arrival_clock = keeps_arrivals.then_some(ArrivalClock::Steps {
-        period_s: record.period_s,
-        sent: period_starts,
-    });
+    let (record, inbox) = host.finish();
     mirror.restore_inbox(inbox);
     progress.set(record.periods_done);
     record

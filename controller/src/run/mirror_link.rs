@@ -8,11 +8,12 @@ use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::link::{CanLink, LinkError, VirtualClock};
 use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
-pub use super::host_inbox::{CanDistance, HostInbox, MirrorLinkCounters, NodeEvent};
+pub use super::host_inbox::{HostInbox, MirrorLinkCounters, NodeEvent};
 use super::host_loop::{StampedFrame, coil_command_frame, period_frames};
 use super::interrupt::Interrupt;
 use super::link_faults::{InjectedFrameFaults, LinkFaults};
 pub use super::loop_error::LoopError;
+use super::sample_log::SampleLog;
 
 /// How long the zero command and the channel's close may take on the way out of a stopped
 /// run before they are given up (the node may have stopped reading its line).
@@ -232,9 +233,9 @@ impl MirrorLink {
         self.inbox.events()
     }
 
-    /// Distance frames received on this link (a sensor on CAN), in order, with their arrival.
-    pub fn take_distances(&mut self) -> Vec<CanDistance> {
-        self.inbox.take_distances()
+    /// The Distance frames received on this link (a sensor on CAN).
+    pub fn distances_mut(&mut self) -> &mut SampleLog {
+        self.inbox.distances_mut()
     }
 
     /// The link's counters.

@@ -12,6 +12,8 @@
 //! - [`mirror_link`]: the mirror node seen from the controller: exchanges, status, faults,
 //!   watchdog.
 //! - [`sensor_link`]: the ILD stream seen from the controller, with its raw recording.
+//! - [`sample_log`]: a sensor's samples as they arrive on either link (counters unwrapped,
+//!   arrivals bounding its clock).
 //! - [`sensor_setup`]: configuring and reading back the sensor before a scan.
 //! - [`bus_load`]: refusing a loop that cannot fit on a link's bit rate.
 //! - [`chunked`]: what a run keeps per sample, in chunks freed as imaging passes them.
@@ -57,6 +59,7 @@ pub mod power_backoff;
 pub mod power_guard;
 pub mod progress;
 pub mod realtime;
+pub mod sample_log;
 pub mod scenario;
 pub mod sensor_link;
 pub mod sensor_setup;
@@ -245,13 +248,14 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         let progress = progress::Progress::new(periods, &scenario.name);
         let mut interrupt =
             interrupt::Interrupt::install().context("installing the signal handlers")?;
+        // The sensor's samples bound its clock as they arrive, on whichever link it is.
         if let Some(rate_hz) = sensor_rate_hz {
-            links
-                .sensor
-                .bound_clock_by_arrivals(match scenario.timing.mode {
-                    TimingMode::Lockstep => ArrivalBound::steps(period_s, rate_hz),
-                    TimingMode::Realtime => ArrivalBound::wall_clock(rate_hz),
-                });
+            let bound = match scenario.timing.mode {
+                TimingMode::Lockstep => ArrivalBound::steps(period_s, rate_hz),
+                TimingMode::Realtime => ArrivalBound::wall_clock(rate_hz),
+            };
+            links.sensor.bound_clock_by_arrivals(bound.clone());
+            links.mirror.distances_mut().bound_clock_by_arrivals(bound);
         }
         // Angle history only where sensor samples are paired with it: a mirror-only run's
         // record takes the same memory however long it runs.
@@ -310,7 +314,8 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         // The loop has stopped (coils at zero): from here a signal ends the process at once,
         // so no wrap-up step can leave a scan that ignores SIGTERM.
         interrupt.restore_default();
-        let can_distances = links.mirror.take_distances();
+        let can_distances = links.mirror.distances_mut().take_samples();
+        let can_arrivals = links.mirror.distances_mut().take_arrival_bound();
         let mirror_counters = links.mirror.counters();
         let node_events = links.mirror.events().to_vec();
         let frame_faults = links.mirror.fault_report();
@@ -341,6 +346,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         anyhow::Ok(output::RunData {
             record,
             can_distances,
+            can_arrivals,
             mirror_counters,
             node_events,
             sensor_arrivals: links.sensor.take_arrival_bound(),

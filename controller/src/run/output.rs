@@ -28,10 +28,11 @@ use super::host_loop::LoopRecord;
 use super::link_faults::InjectedFrameFaults;
 use super::mirror_link::{MirrorLinkCounters, NodeEvent};
 use super::output_failures::OutputFailures;
-use super::pairing::{ArrivalBound, ArrivalClock, CounterUnwrapper, FramePairing, SensorClock};
+use super::pairing::{ArrivalBound, FramePairing, SensorClock};
 use super::plan::PlanSummary;
+use super::sample_log::CountedSample;
 use super::scenario::Scenario;
-use super::sensor_link::{CountedSample, ILD_COUNTER_MODULUS, SensorCounters};
+use super::sensor_link::SensorCounters;
 use super::tracking::{PlotPoint, TrackingSummary};
 use super::{ScanEnd, ScanResult};
 use crate::imaging::grid::GridMethod;
@@ -55,8 +56,11 @@ pub const TRACKING_SVG: &str = "tracking.svg";
 pub struct RunData {
     /// The loop's record.
     pub record: LoopRecord,
-    /// Distance frames that came on the mirror's CAN link, with their arrival.
-    pub can_distances: Vec<(u32, IldValue, tokio::time::Instant)>,
+    /// Distance frames that came on the mirror's CAN link (a sensor on CAN), counters
+    /// unwrapped.
+    pub can_distances: Chunked<CountedSample>,
+    /// The bound the Distance frames' arrivals give on the sensor's clock, when asked for.
+    pub can_arrivals: Option<ArrivalBound>,
     /// The mirror link's counters.
     pub mirror_counters: MirrorLinkCounters,
     /// The mirror node's faults and changes of state ([`NodeEvent`]).
@@ -98,31 +102,21 @@ pub fn write(
     let measuring_rate_hz = rig.sensor.map_or(0.0, |sensor| sensor.measuring_rate_hz);
     let range = rig.sensor.map(|sensor| sensor.range());
     let ild_samples = std::mem::take(&mut run.sensor.0);
+    let can_samples = std::mem::take(&mut run.can_distances);
     let sensor_counters = run.sensor.1;
-    // Distance frames (a sensor on CAN) with their counters unwrapped.
-    let mut can_counter = CounterUnwrapper::new(ILD_COUNTER_MODULUS);
-    let can_counters: Vec<u64> = run
-        .can_distances
-        .iter()
-        .map(|&(counter, _, _)| can_counter.unwrap(u64::from(counter)))
-        .collect();
     let clock = clock.unwrap_or_else(|| {
         estimate_sensor_clock(
-            run.sensor_arrivals.as_ref(),
-            can_counters
-                .iter()
-                .zip(&run.can_distances)
-                .map(|(&counter, &(_, _, arrived))| (counter, arrived)),
-            run.record.arrival_clock.as_ref(),
+            [run.sensor_arrivals.as_ref(), run.can_arrivals.as_ref()],
+            run.record.wall_clock_epoch,
             measuring_rate_hz,
         )
     });
-    let sensor_samples = ild_samples.len() + can_counters.len();
+    let sensor_samples = ild_samples.len() + can_samples.len();
     let sensor_errors = sensor_error_counts(
         ild_samples
             .iter()
-            .map(|sample| sample.value)
-            .chain(run.can_distances.iter().map(|&(_, value, _)| value)),
+            .chain(can_samples.iter())
+            .map(|sample| sample.value),
     );
     let record = &run.record;
     let period_s = record.period_s;
@@ -132,13 +126,7 @@ pub fn write(
         length_s: record.periods_done.saturating_sub(record.lead_in_periods) as f64 * period_s,
     };
     // A rig's sensor is on one of the two: its samples come in the order they were measured.
-    let samples = can_counters
-        .iter()
-        .zip(&run.can_distances)
-        .map(|(&counter, &(_, value, _))| CountedSample { counter, value })
-        .collect::<Vec<_>>()
-        .into_iter()
-        .chain(ild_samples);
+    let samples = can_samples.into_iter().chain(ild_samples);
     let mut pairing = FramePairing::new(clock, frame.start_s, run.record.angles.take(), range);
     let record = &run.record;
     let truth = scenario
@@ -344,31 +332,20 @@ fn fault_report(
 /// sample arrives after it was measured, so the earliest `arrival - counter / rate` on the
 /// loop's time axis bounds counter 0's instant from above: within the line's transmission
 /// time in real time, within one control period in lockstep (loop time is known there only
-/// to the period the sample arrived in). The ILD line's samples were bounded as they came
-/// (`ild`, see [`ArrivalBound`]); Distance frames on the mirror's link (`(unwrapped counter,
-/// arrival)`) are placed with the loop's `arrivals` clock here. Counter 0 at loop time 0
-/// when nothing bounds it.
-fn estimate_sensor_clock(
-    ild: Option<&ArrivalBound>,
-    can_distances: impl Iterator<Item = (u64, tokio::time::Instant)>,
-    arrivals: Option<&ArrivalClock>,
+/// to the period the sample arrived in). The samples were bounded as they came, on the ILD
+/// line and as Distance frames on the mirror's link ([`ArrivalBound`]); a wall-clock bound is
+/// placed on the loop's axis by `epoch` (real time). Counter 0 at loop time 0 when nothing
+/// bounds it.
+fn estimate_sensor_clock<'a>(
+    bounds: impl IntoIterator<Item = Option<&'a ArrivalBound>>,
+    epoch: Option<tokio::time::Instant>,
     measuring_rate_hz: f64,
 ) -> SensorClock {
-    let epoch = match arrivals {
-        Some(ArrivalClock::Epoch(epoch)) => Some(*epoch),
-        _ => None,
-    };
-    let ild_bound_s = ild
-        .and_then(|bound| bound.counter_zero_s(epoch))
-        .unwrap_or(f64::INFINITY);
-    let can_bound_s = arrivals.map_or(f64::INFINITY, |arrivals| {
-        can_distances
-            .map(|(counter, arrived)| {
-                arrivals.loop_time_s(arrived) - counter as f64 / measuring_rate_hz
-            })
-            .fold(f64::INFINITY, f64::min)
-    });
-    let counter_zero_s = ild_bound_s.min(can_bound_s);
+    let counter_zero_s = bounds
+        .into_iter()
+        .flatten()
+        .filter_map(|bound| bound.counter_zero_s(epoch))
+        .fold(f64::INFINITY, f64::min);
     SensorClock {
         measuring_rate_hz,
         counter_zero_s: if counter_zero_s.is_finite() {
@@ -497,7 +474,7 @@ mod tests {
     use std::time::Duration;
 
     use super::estimate_sensor_clock;
-    use crate::run::pairing::{ArrivalBound, ArrivalClock};
+    use crate::run::pairing::ArrivalBound;
 
     const RATE_HZ: f64 = 20_000.0;
     /// One ILD cycle (3 bytes of 10 bits) at 691 200 Bd.
@@ -538,23 +515,30 @@ mod tests {
         out
     }
 
-    /// The estimate from `samples` both ways they come: on the ILD line (bounded as they
-    /// arrive) and as Distance frames on the mirror's link (placed afterwards); both must agree.
+    /// The estimate from `samples` both ways they come: all on the ILD line, and split
+    /// between the line and Distance frames on the mirror's link (each bounded as they
+    /// arrive); both must agree.
     fn estimate(epoch: tokio::time::Instant, samples: &[(u64, tokio::time::Instant)]) -> f64 {
-        let mut ild = ArrivalBound::wall_clock(RATE_HZ);
-        for &(counter, arrived) in samples {
-            ild.note(arrived, counter);
-        }
-        let arrivals = ArrivalClock::Epoch(epoch);
-        let on_the_line =
-            estimate_sensor_clock(Some(&ild), std::iter::empty(), Some(&arrivals), RATE_HZ);
-        let on_can = estimate_sensor_clock(None, samples.iter().copied(), Some(&arrivals), RATE_HZ);
+        let bound = |samples: &mut dyn Iterator<Item = &(u64, tokio::time::Instant)>| {
+            let mut bound = ArrivalBound::wall_clock(RATE_HZ);
+            for &(counter, arrived) in samples {
+                bound.note(arrived, counter);
+            }
+            bound
+        };
+        let all = bound(&mut samples.iter());
+        let on_the_line = estimate_sensor_clock([Some(&all), None], Some(epoch), RATE_HZ);
+        let (line, can) = (
+            bound(&mut samples.iter().step_by(2)),
+            bound(&mut samples.iter().skip(1).step_by(2)),
+        );
+        let split = estimate_sensor_clock([Some(&line), Some(&can)], Some(epoch), RATE_HZ);
         assert_eq!(on_the_line.measuring_rate_hz, RATE_HZ);
         assert!(
-            (on_the_line.counter_zero_s - on_can.counter_zero_s).abs() < 1e-9,
-            "ILD line {} s, CAN {} s",
+            (on_the_line.counter_zero_s - split.counter_zero_s).abs() < 1e-9,
+            "ILD line {} s, split with CAN {} s",
             on_the_line.counter_zero_s,
-            on_can.counter_zero_s
+            split.counter_zero_s
         );
         on_the_line.counter_zero_s
     }

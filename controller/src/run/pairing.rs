@@ -112,37 +112,6 @@ impl FramePairing {
     }
 }
 
-/// Where a wall-clock arrival lies on the loop's time axis, to estimate a sensor clock that
-/// nobody declared (a real sensor): an upper bound of the loop time of anything measured
-/// before that arrival.
-#[derive(Debug, Clone, PartialEq)]
-pub enum ArrivalClock {
-    /// Real time: loop time runs with the wall clock from this instant (loop time 0).
-    Epoch(tokio::time::Instant),
-    /// Lockstep: loop time is virtual and advances one period per Step. `sent[k]` is when
-    /// period `k`'s frames started going out; the node measures period `k` only after that,
-    /// so anything that arrived after `sent[k]` may stand for loop time up to `(k + 1)` periods.
-    Steps {
-        /// The control period, s.
-        period_s: f64,
-        /// Per period, the instant its frames started going out.
-        sent: Vec<tokio::time::Instant>,
-    },
-}
-
-impl ArrivalClock {
-    /// The loop time an arrival at `arrived` bounds from above, s.
-    #[must_use]
-    pub fn loop_time_s(&self, arrived: tokio::time::Instant) -> f64 {
-        match self {
-            ArrivalClock::Epoch(epoch) => arrived.saturating_duration_since(*epoch).as_secs_f64(),
-            ArrivalClock::Steps { period_s, sent } => {
-                sent.partition_point(|started| *started <= arrived) as f64 * period_s
-            }
-        }
-    }
-}
-
 /// The bound on a sensor's counter-0 instant that arrivals give, kept as samples arrive (a
 /// real sensor declares no clock): a sample arrives after it was measured, so the earliest
 /// `loop time of arrival - counter / rate` bounds counter 0's instant from above. Nothing is
@@ -523,18 +492,23 @@ mod tests {
     fn lockstep_arrivals_count_the_periods_started_before_them() {
         let start = tokio::time::Instant::now();
         let at = |us: u64| start + std::time::Duration::from_micros(us);
-        let clock = ArrivalClock::Steps {
-            period_s: 0.5,
-            sent: vec![at(0), at(10), at(20)],
+        // The loop time one arrival bounds (a sample with counter 0), periods of 0.5 s.
+        let loop_time_s = |arrived| {
+            let mut bound = ArrivalBound::steps(0.5, 1.0);
+            for started in [at(0), at(10), at(20)] {
+                bound.period_started(started);
+            }
+            bound.note(arrived, 0);
+            bound.counter_zero_s(None).expect("one arrival")
         };
         // Before any period started: loop time 0; after period 1 started: the end of period 1.
         assert_eq!(
-            clock.loop_time_s(start - std::time::Duration::from_micros(1)),
+            loop_time_s(start - std::time::Duration::from_micros(1)),
             0.0
         );
-        assert_eq!(clock.loop_time_s(at(15)), 1.0);
-        assert_eq!(clock.loop_time_s(at(20)), 1.5);
-        assert_eq!(clock.loop_time_s(at(99)), 1.5);
+        assert_eq!(loop_time_s(at(15)), 1.0);
+        assert_eq!(loop_time_s(at(20)), 1.5);
+        assert_eq!(loop_time_s(at(99)), 1.5);
     }
 
     #[test]
@@ -563,10 +537,13 @@ mod tests {
             sent.len() > RECENT_PERIOD_STARTS,
             "the window must be passed"
         );
-        let clock = ArrivalClock::Steps { period_s, sent };
+        // Every start kept: an arrival after period k's start stands for loop time (k + 1)
+        // periods.
+        let loop_time_s =
+            |arrived| sent.partition_point(|start| *start <= arrived) as f64 * period_s;
         let over_all = arrivals
             .iter()
-            .map(|&(counter, arrived)| clock.loop_time_s(arrived) - counter as f64 / rate_hz)
+            .map(|&(counter, arrived)| loop_time_s(arrived) - counter as f64 / rate_hz)
             .fold(f64::INFINITY, f64::min);
         assert_eq!(bound.counter_zero_s(None), Some(over_all));
         assert_eq!(

@@ -22,7 +22,6 @@ use super::host_loop::{LoopRecord, coil_command_frame};
 use super::interrupt::Interrupt;
 use super::loop_error::LoopError;
 use super::mirror_link::MirrorLink;
-use super::pairing::ArrivalClock;
 use super::progress::Progress;
 use super::scenario::TimingConfig;
 use super::sensor_link::SensorLink;
@@ -99,10 +98,11 @@ pub async fn run(
         let epoch = tokio::time::Instant::from_std(arrival)
             .checked_sub(Duration::from_secs_f64((j + 1) as f64 * period_s));
         if let Some(candidate) = epoch {
-            record.arrival_clock = Some(match record.arrival_clock {
-                Some(ArrivalClock::Epoch(current)) => ArrivalClock::Epoch(current.min(candidate)),
-                _ => ArrivalClock::Epoch(candidate),
-            });
+            record.wall_clock_epoch = Some(
+                record
+                    .wall_clock_epoch
+                    .map_or(candidate, |current| current.min(candidate)),
+            );
         }
         if let Some(previous) = last_arrival {
             intervals.record((arrival - previous).as_secs_f64());

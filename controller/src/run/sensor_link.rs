@@ -9,29 +9,17 @@
 use std::collections::VecDeque;
 use std::time::Duration;
 
-use scanhil_protocol::ild::IldValue;
 use scanhil_protocol::link::ild::{IldCounters, IldCycle, IldCycleAssembler, IldLink};
 use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{ByteCapture, LinkError, LinkUri, PtyPair};
 
 use super::chunked::Chunked;
 use super::loop_error::LoopError;
-use super::pairing::{ArrivalBound, CounterUnwrapper};
+use super::pairing::ArrivalBound;
+use super::sample_log::{CountedSample, SampleLog};
 
-/// The ILD counter's modulus (18 bits).
-pub const ILD_COUNTER_MODULUS: u64 = 1 << 18;
 /// Values per output cycle: the distance and the counter.
 const VALUES_PER_CYCLE: usize = 2;
-
-/// One decoded sensor sample: unwrapped counter and value (16 bytes: a long run keeps one a
-/// sample; their arrivals go into an [`ArrivalBound`] instead of being kept).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct CountedSample {
-    /// The measured-value counter, unwrapped (monotonic).
-    pub counter: u64,
-    /// The distance or error.
-    pub value: IldValue,
-}
 
 /// What the sensor link saw.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
@@ -71,15 +59,6 @@ pub struct IldSampleDecoder {
     log: SampleLog,
 }
 
-/// Decoded samples with their counters unwrapped, and the bound their arrivals give on the
-/// sensor's clock (when the loop asked for one).
-#[derive(Debug)]
-struct SampleLog {
-    unwrapper: CounterUnwrapper,
-    samples: Chunked<CountedSample>,
-    arrivals: Option<ArrivalBound>,
-}
-
 impl SensorLink {
     /// Opens an `ild:` link.
     ///
@@ -117,16 +96,14 @@ impl SensorLink {
     /// [`ArrivalBound`]; nothing when the sensor is elsewhere).
     pub fn bound_clock_by_arrivals(&mut self, bound: ArrivalBound) {
         if let SensorLink::Ild(stream) = self {
-            stream.log.arrivals = Some(bound);
+            stream.log.bound_clock_by_arrivals(bound);
         }
     }
 
     /// Lockstep: the next period's frames started going out at `at` (for the arrival bound).
     pub fn period_started(&mut self, at: tokio::time::Instant) {
-        if let SensorLink::Ild(stream) = self
-            && let Some(arrivals) = &mut stream.log.arrivals
-        {
-            arrivals.period_started(at);
+        if let SensorLink::Ild(stream) = self {
+            stream.log.period_started(at);
         }
     }
 
@@ -134,7 +111,7 @@ impl SensorLink {
     pub fn take_arrival_bound(&mut self) -> Option<ArrivalBound> {
         match self {
             SensorLink::Elsewhere => None,
-            SensorLink::Ild(stream) => stream.log.arrivals.take(),
+            SensorLink::Ild(stream) => stream.log.take_arrival_bound(),
         }
     }
 
@@ -153,7 +130,7 @@ impl SensorLink {
             SensorLink::Elsewhere => std::future::pending().await,
             SensorLink::Ild(stream) => loop {
                 match stream.link.recv_cycle().await {
-                    Ok(cycle) => stream.log.add(&cycle),
+                    Ok(cycle) => add_cycle(&mut stream.log, &cycle),
                     Err(error) => return error.into(),
                 }
             },
@@ -167,7 +144,7 @@ impl SensorLink {
     pub fn try_pump(&mut self) -> Result<(), LoopError> {
         if let SensorLink::Ild(stream) = self {
             while let Some(cycle) = stream.link.try_recv_cycle()? {
-                stream.log.add(&cycle);
+                add_cycle(&mut stream.log, &cycle);
             }
         }
         Ok(())
@@ -186,7 +163,7 @@ impl SensorLink {
             match stream.link.recv_cycle_timeout(quiet).await {
                 Ok(None) | Err(LinkError::HangUp { .. }) => return stream.link.flush_capture(),
                 Err(error) => return Err(error),
-                Ok(Some(cycle)) => stream.log.add(&cycle),
+                Ok(Some(cycle)) => add_cycle(&mut stream.log, &cycle),
             }
         }
     }
@@ -196,7 +173,10 @@ impl SensorLink {
     pub fn snapshot(&self) -> (Vec<CountedSample>, SensorCounters) {
         match self {
             SensorLink::Elsewhere => (Vec::new(), SensorCounters::default()),
-            SensorLink::Ild(stream) => stream.log.snapshot(stream.link.counters()),
+            SensorLink::Ild(stream) => (
+                stream.log.samples().iter().copied().collect(),
+                counters(&stream.log, stream.link.counters()),
+            ),
         }
     }
 
@@ -206,8 +186,8 @@ impl SensorLink {
         match self {
             SensorLink::Elsewhere => (Chunked::new(), SensorCounters::default()),
             SensorLink::Ild(stream) => {
-                let counters = stream.log.counters(stream.link.counters());
-                (std::mem::take(&mut stream.log.samples), counters)
+                let counters = counters(&stream.log, stream.link.counters());
+                (stream.log.take_samples(), counters)
             }
         }
     }
@@ -229,15 +209,15 @@ impl IldSampleDecoder {
     pub fn push(&mut self, bytes: &[u8], arrived: tokio::time::Instant) {
         self.assembler.push(bytes, arrived, &mut self.cycles);
         for cycle in self.cycles.drain(..) {
-            self.log.add(&cycle);
+            add_cycle(&mut self.log, &cycle);
         }
     }
 
     /// The samples and counters, handed over without a copy.
     #[must_use]
-    pub fn finish(self) -> (Chunked<CountedSample>, SensorCounters) {
-        let counters = self.log.counters(self.assembler.counters());
-        (self.log.samples, counters)
+    pub fn finish(mut self) -> (Chunked<CountedSample>, SensorCounters) {
+        let counters = counters(&self.log, self.assembler.counters());
+        (self.log.take_samples(), counters)
     }
 }
 
@@ -247,41 +227,17 @@ impl Default for IldSampleDecoder {
     }
 }
 
-impl SampleLog {
-    fn new() -> SampleLog {
-        SampleLog {
-            unwrapper: CounterUnwrapper::new(ILD_COUNTER_MODULUS),
-            samples: Chunked::new(),
-            arrivals: None,
-        }
-    }
+/// Adds a decoded cycle: its distance, with its counter when the sensor sends one.
+fn add_cycle(log: &mut SampleLog, cycle: &IldCycle) {
+    log.add(cycle.extras.first().copied(), cycle.distance, cycle.arrived);
+}
 
-    fn add(&mut self, cycle: &IldCycle) {
-        let counter = match cycle.extras.first() {
-            Some(&raw) => self.unwrapper.unwrap(u64::from(raw)),
-            None => self.samples.len() as u64,
-        };
-        if let Some(arrivals) = &mut self.arrivals {
-            arrivals.note(cycle.arrived, counter);
-        }
-        self.samples.push(CountedSample {
-            counter,
-            value: cycle.distance,
-        });
-    }
-
-    /// The samples, and the counters with the line's.
-    fn snapshot(&self, line: &IldCounters) -> (Vec<CountedSample>, SensorCounters) {
-        (self.samples.iter().copied().collect(), self.counters(line))
-    }
-
-    /// The counters, with the line's.
-    fn counters(&self, line: &IldCounters) -> SensorCounters {
-        SensorCounters {
-            samples: self.samples.len() as u64,
-            counter_gaps: self.unwrapper.missing(),
-            resync_bytes: line.skipped_bytes,
-            incomplete_cycles: line.incomplete_cycles,
-        }
+/// The log's counters, with the line's.
+fn counters(log: &SampleLog, line: &IldCounters) -> SensorCounters {
+    SensorCounters {
+        samples: log.samples().len() as u64,
+        counter_gaps: log.counter_gaps(),
+        resync_bytes: line.skipped_bytes,
+        incomplete_cycles: line.incomplete_cycles,
     }
 }
