@@ -15,7 +15,7 @@
 //! - [`dual_tone`]: eq. 5 with Table I, optionally with the tones moved onto the drive
 //!   frequencies.
 //! - [`plant_model`]: eq. 4, ZOH-discretised, with the one-period command delay.
-//! - [`plant_source`]: a design's plant from a file: a fit, a scene, a controller's.
+//! - [`plant_source`]: a design's plant from a file: a scene's mirror, a controller's plant.
 //! - [`loop_analysis`]: the nominal closed loop: poles, margins, bandwidth, T.
 //! - [`design`]: controllers designed for a plant and a rate: the paper's alpha-tuned PID and
 //!   a dual-tone rule (resonant tones on the equalised plant), checked against stated margins.

@@ -53,11 +53,11 @@ pub struct Args {
     /// transit as delay).
     #[arg(long)]
     rig: PathBuf,
-    /// The plant: a fit written by `scanhil identify --fit`, a scene file, or a controller
-    /// file (its nominal plant); default eq. 4 as printed.
+    /// The plant: a scene file, or a controller file (its nominal plant); default eq. 4 as
+    /// printed.
     #[arg(long)]
     plant: Option<PathBuf>,
-    /// The plant's axis to design for when it has two (a fit or a per-axis scene).
+    /// The plant's axis to design for when the two differ.
     #[arg(long, value_enum, default_value = "alpha")]
     axis: scanhil_controller::trajectory::SensingAxis,
     /// The control rate, Hz, or `bus`: the highest rate the rig's bus carries (the bus
