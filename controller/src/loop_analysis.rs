@@ -49,6 +49,16 @@ impl std::fmt::Display for ZPoint {
     }
 }
 
+/// Poles as one line of text, for refusals.
+#[must_use]
+pub fn format_poles(poles: &[ZPoint]) -> String {
+    poles
+        .iter()
+        .map(ToString::to_string)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// A gain crossover (|L| = 1) and its phase margin.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct GainCrossover {

@@ -1,9 +1,8 @@
-//! `scanhil design`: the dual-tone rule at the rate a 1 Mbit/s bus carries, the alpha-tuned
-//! PID's refusal there, refusals with their poles, a bus's transit, the reach of a rate, and
-//! the command as a user runs it.
+//! `scanhil design`'s rules: the dual-tone at the rate a 1 Mbit/s bus carries, the alpha-tuned
+//! PID's refusal there, refusals with their poles, a bus's transit, the reach of a rate (the
+//! command as a user runs it: `control_cli.rs`).
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use scanhil_controller::design::alpha_tuning::AlphaTuning;
 use scanhil_controller::design::reach::{TRACK_TO, pid_reach, tone_reach};
@@ -301,76 +300,4 @@ fn the_reach_is_where_the_error_reaches_one_per_cent() {
         "{:?}",
         over.figures.predicted_tracking
     );
-}
-
-fn scanhil(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_scanhil"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-#[test]
-fn the_command_writes_a_controller_that_loads_or_refuses_with_exit_1() {
-    let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("designed.json");
-    let rig = fixture("rigs/paper-bench-1mbit.json");
-    let run = scanhil(&[
-        "design",
-        "--rig",
-        rig.to_str().unwrap(),
-        "--rate-hz",
-        "bus",
-        "--kind",
-        "dual-tone",
-        "--json",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
-    assert!(
-        run.status.success(),
-        "{}",
-        String::from_utf8_lossy(&run.stderr)
-    );
-    let json: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
-    assert_eq!(json["design"]["rate_hz"], 2736.0);
-    assert!(json["reach"]["dual_tone"]["drive_hz"].is_array());
-    let written = ControllerSettings::load(&out).unwrap();
-    written
-        .build()
-        .expect("the written controller loads and is stable");
-    assert_eq!(written.control_rate_hz, 2736.0);
-
-    let refused = scanhil(&[
-        "design",
-        "--rig",
-        rig.to_str().unwrap(),
-        "--rate-hz",
-        "bus",
-        "--kind",
-        "pid",
-        "--crossover-hz",
-        "211",
-        "--out",
-        dir.path().join("never.json").to_str().unwrap(),
-    ]);
-    assert_eq!(refused.status.code(), Some(1));
-    let stderr = String::from_utf8_lossy(&refused.stderr);
-    assert!(
-        stderr.contains("below the 45 deg asked") && stderr.contains("poles"),
-        "{stderr}"
-    );
-    assert!(!dir.path().join("never.json").exists());
-
-    let no_bus = scanhil(&[
-        "design",
-        "--rig",
-        fixture("rigs/paper-bench.json").to_str().unwrap(),
-        "--rate-hz",
-        "bus",
-        "--kind",
-        "dual-tone",
-    ]);
-    assert_eq!(no_bus.status.code(), Some(1));
-    assert!(String::from_utf8_lossy(&no_bus.stderr).contains("states no `bus`"));
 }

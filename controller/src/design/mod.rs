@@ -21,7 +21,7 @@ use std::path::PathBuf;
 use serde::Serialize;
 
 use crate::discretise::Method;
-use crate::loop_analysis::{GainCrossover, NominalLoop, ZPoint};
+use crate::loop_analysis::{GainCrossover, NominalLoop, ZPoint, format_poles};
 use crate::plant_model::PlantModel;
 use crate::settings::{ControllerSettings, LawSettings, SettingsError};
 use crate::steady_state::{PredictedTracking, predict};
@@ -155,14 +155,6 @@ pub enum DesignError {
         /// The offending poles: unstable ones, or the closed loop's slowest.
         poles: Vec<ZPoint>,
     },
-}
-
-fn format_poles(poles: &[ZPoint]) -> String {
-    poles
-        .iter()
-        .map(ToString::to_string)
-        .collect::<Vec<_>>()
-        .join(", ")
 }
 
 /// The slowest closed-loop poles shown when a stable loop misses its margins.
@@ -375,34 +367,36 @@ impl DesignRequest {
     fn describe_pid(&self, tuning: &AlphaTuning) -> String {
         format!(
             "Alpha-tuned series PID (the paper's rule, Table II's at 211 Hz) for crossover {} Hz, \
-             alpha {}, integrator at crossover / {}, derivative stopped at {} alpha crossover; \
-             plant K {}, ws {} rad/s, zeta {}, extra delay {} s; at {} Hz, {}.",
+             alpha {}, integrator at crossover / {}, derivative stopped at {} alpha crossover; {}",
             tuning.crossover_hz,
             tuning.alpha,
             tuning.integrator_ratio,
             tuning.taming,
-            self.plant.dc_gain,
-            self.plant.natural_freq_rad_s,
-            self.plant.damping_ratio,
-            self.plant.extra_delay_s,
-            self.rate_hz,
-            self.method.name()
+            self.describe_plant()
         )
     }
 
     fn describe_tones(&self, tones: &ToneRule) -> String {
         format!(
             "Dual-tone in eq. 5's form: resonant tones at {:?} Hz (width {} Hz, damping {}) on \
-             the plant equalised by a zero pair on its resonance and a roll-off pair at {} Hz; \
-             plant K {}, ws {} rad/s, zeta {}, extra delay {} s; at {} Hz, {}.",
+             the plant equalised by a zero pair on its resonance and a roll-off pair at {} Hz; {}",
             tones.tones_hz,
             tones.width_hz,
             tones.damping,
             tones.rolloff_hz,
-            self.plant.dc_gain,
-            self.plant.natural_freq_rad_s,
-            self.plant.damping_ratio,
-            self.plant.extra_delay_s,
+            self.describe_plant()
+        )
+    }
+
+    /// The plant, rate and method a design was made for.
+    fn describe_plant(&self) -> String {
+        let p = &self.plant;
+        format!(
+            "plant K {}, ws {} rad/s, zeta {}, extra delay {} s; at {} Hz, {}.",
+            p.dc_gain,
+            p.natural_freq_rad_s,
+            p.damping_ratio,
+            p.extra_delay_s,
             self.rate_hz,
             self.method.name()
         )
