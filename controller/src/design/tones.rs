@@ -119,8 +119,8 @@ impl ToneRule {
             let controller = discrete_controller(&params, method, period_s);
             let mut change: f64 = 0.0;
             let previous = tones.clone();
-            for i in 0..tones.len() {
-                let w = tones[i].w;
+            for (i, tone) in tones.iter_mut().enumerate() {
+                let w = tone.w;
                 let distortion = if previous.iter().all(|t| t.gain == 0.0) {
                     Complex::new(1.0, 0.0)
                 } else {
@@ -141,9 +141,9 @@ impl ToneRule {
                 let phase = -rest.arg();
                 let gain = 2.0 * sigma / rest.norm();
                 change = change
-                    .max(wrapped(phase - tones[i].phase).abs())
-                    .max(((gain - tones[i].gain) / gain).abs());
-                tones[i] = Tone { w, gain, phase };
+                    .max(wrapped(phase - tone.phase).abs())
+                    .max(((gain - tone.gain) / gain).abs());
+                *tone = Tone { w, gain, phase };
             }
             params = self.params(plant, &tones);
             if change < 1e-12 {
