@@ -1,4 +1,4 @@
-//! The paper's PID tuning rule (Section IV, ref. [39]): "alpha tuning" of a series PID with a
+//! The paper's PID tuning rule (Section IV, the paper's reference 39): "alpha tuning" of a series PID with a
 //! tamed derivative around a chosen crossover `wc`:
 //!
 //! ```text
