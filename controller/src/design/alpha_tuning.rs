@@ -1,5 +1,5 @@
-//! The paper's PID tuning rule (Section IV, the paper's reference 39): "alpha tuning" of a series PID with a
-//! tamed derivative around a chosen crossover `wc`:
+//! The paper's PID tuning rule (Section IV, the paper's reference 39): "alpha tuning" of a
+//! series PID with a tamed derivative around a chosen crossover `wc`:
 //!
 //! ```text
 //! C(s) = kp (1 + wi/s) (1 + s/wd) / (1 + s/wt)
