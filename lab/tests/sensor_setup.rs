@@ -121,28 +121,19 @@ async fn the_emulated_sensor_is_configured_and_read_back_then_streams() {
 async fn the_host_decodes_the_values_in_the_order_getoutinfo_gives() {
     // A sensor whose cycle puts the counter before the distance: the host must not take the
     // first value for the distance.
-    let pair = PtyPair::open().unwrap();
-    let uri = format!("ild:{}", pair.slave_path().display())
-        .parse()
-        .unwrap();
-    let device =
-        scripted_device(
-            SerialLine::from_pty(pair, "device").unwrap(),
-            |command| match command {
-                "GETINFO" => "Name: ILD2300\r\nMeasuring range: 100.00mm\r\n->".into(),
-                "MEASRATE" => "MEASRATE 20\r\n->".into(),
-                "BAUDRATE" => "BAUDRATE 691200\r\n->".into(),
-                "GETOUTINFO_RS422" => "COUNTER\r\nDIST1\r\n->".into(),
-                "OUTPUT RS422" => [
-                    b"->".to_vec(),
-                    encode_cycle(&[41, 30_041]),
-                    encode_cycle(&[42, 30_042]),
-                ]
-                .concat(),
-                _ => "->".into(),
-            },
-        );
-    let mut host = SensorLink::open(&uri).unwrap();
+    let (mut host, device) = scripted_sensor(|command| match command {
+        "GETINFO" => "Name: ILD2300\r\nMeasuring range: 100.00mm\r\n->".into(),
+        "MEASRATE" => "MEASRATE 20\r\n->".into(),
+        "BAUDRATE" => "BAUDRATE 691200\r\n->".into(),
+        "GETOUTINFO_RS422" => "COUNTER\r\nDIST1\r\n->".into(),
+        "OUTPUT RS422" => [
+            b"->".to_vec(),
+            encode_cycle(&[41, 30_041]),
+            encode_cycle(&[42, 30_042]),
+        ]
+        .concat(),
+        _ => "->".into(),
+    });
     let expected = RigSensor {
         extra_values: AddValueSet::of(&[AddValue::Counter]),
         ..expectation(&scene())
@@ -172,21 +163,12 @@ async fn the_host_decodes_the_values_in_the_order_getoutinfo_gives() {
 
 #[tokio::test]
 async fn a_sensor_sending_other_values_than_the_rig_expects_is_refused() {
-    let pair = PtyPair::open().unwrap();
-    let uri = format!("ild:{}", pair.slave_path().display())
-        .parse()
-        .unwrap();
-    let device =
-        scripted_device(
-            SerialLine::from_pty(pair, "device").unwrap(),
-            |command| match command {
-                "GETINFO" => "Name: ILD2300\r\nMeasuring range: 100.00mm\r\n->".into(),
-                "MEASRATE" => "MEASRATE 20\r\n->".into(),
-                "GETOUTINFO_RS422" => "DIST1\r\nTEMP\r\n->".into(),
-                _ => "->".into(),
-            },
-        );
-    let mut host = SensorLink::open(&uri).unwrap();
+    let (mut host, device) = scripted_sensor(|command| match command {
+        "GETINFO" => "Name: ILD2300\r\nMeasuring range: 100.00mm\r\n->".into(),
+        "MEASRATE" => "MEASRATE 20\r\n->".into(),
+        "GETOUTINFO_RS422" => "DIST1\r\nTEMP\r\n->".into(),
+        _ => "->".into(),
+    });
     let expected = expectation(&scene());
     let error = tokio::select! {
         result = configure(host.ild_link_mut().unwrap(), &expected) => result.unwrap_err(),
@@ -245,6 +227,19 @@ async fn a_different_measuring_range_or_an_unknown_rate_is_refused() {
     assert!(text.contains("12345 Hz"), "{text}");
 }
 
+/// The host's sensor link on a pty's slave path, and a scripted device on its master
+/// ([`scripted_device`]) to run beside it.
+fn scripted_sensor(
+    answer: impl Fn(&str) -> Vec<u8>,
+) -> (SensorLink, impl std::future::Future<Output = ()>) {
+    let pair = PtyPair::open().unwrap();
+    let uri = format!("ild:{}", pair.slave_path().display())
+        .parse()
+        .unwrap();
+    let device = scripted_device(SerialLine::from_pty(pair, "device").unwrap(), answer);
+    (SensorLink::open(&uri).unwrap(), device)
+}
+
 /// A scripted device on the pty master: answers each command line (ended by LF, a CR before
 /// it dropped) by `answer`.
 async fn scripted_device(mut line: SerialLine, answer: impl Fn(&str) -> Vec<u8>) {
@@ -274,14 +269,7 @@ async fn scripted_device(mut line: SerialLine, answer: impl Fn(&str) -> Vec<u8>)
 async fn a_device_answering_errors_fails_the_set_up_naming_command_and_error() {
     let expected = expectation(&scene());
     // Every command refused.
-    let pair = PtyPair::open().unwrap();
-    let uri = format!("ild:{}", pair.slave_path().display())
-        .parse()
-        .unwrap();
-    let device = scripted_device(SerialLine::from_pty(pair, "device").unwrap(), |_| {
-        b"E32 Timeout\r\n->".to_vec()
-    });
-    let mut host = SensorLink::open(&uri).unwrap();
+    let (mut host, device) = scripted_sensor(|_| b"E32 Timeout\r\n->".to_vec());
     let error = tokio::select! {
         result = configure(host.ild_link_mut().unwrap(), &expected) => result.unwrap_err(),
         () = device => panic!("the device ended"),
@@ -292,21 +280,12 @@ async fn a_device_answering_errors_fails_the_set_up_naming_command_and_error() {
     );
 
     // A sensor that does not know the laser command (its name is unchecked).
-    let pair = PtyPair::open().unwrap();
-    let uri = format!("ild:{}", pair.slave_path().display())
-        .parse()
-        .unwrap();
-    let device =
-        scripted_device(
-            SerialLine::from_pty(pair, "device").unwrap(),
-            |command| match command {
-                "GETINFO" => "Name: ILD2300\r\nSerial: 1\r\nMeasuring range: 100.00mm\r\n->".into(),
-                "MEASRATE" => "MEASRATE 20\r\n->".into(),
-                c if c.starts_with("LASERPOW") => "E01 Unknown command\r\n->".into(),
-                _ => "->".into(),
-            },
-        );
-    let mut host = SensorLink::open(&uri).unwrap();
+    let (mut host, device) = scripted_sensor(|command| match command {
+        "GETINFO" => "Name: ILD2300\r\nSerial: 1\r\nMeasuring range: 100.00mm\r\n->".into(),
+        "MEASRATE" => "MEASRATE 20\r\n->".into(),
+        c if c.starts_with("LASERPOW") => "E01 Unknown command\r\n->".into(),
+        _ => "->".into(),
+    });
     let error = tokio::select! {
         result = configure(host.ild_link_mut().unwrap(), &expected) => result.unwrap_err(),
         () = device => panic!("the device ended"),
