@@ -164,7 +164,12 @@ fn serve_refuses_timing_values_it_cannot_run_before_its_ready_line() {
             "--watchdog-periods: 0 periods is not within [1, 100000000] periods",
         ),
         (
-            &["--watchdog-periods", "100000000", "--lockstep-answer-allowance-s", "1"],
+            &[
+                "--watchdog-periods",
+                "100000000",
+                "--lockstep-answer-allowance-s",
+                "1",
+            ],
             "--watchdog-periods: 100000000 periods of 1 s wait 100000000 s in all",
         ),
         (
@@ -175,7 +180,10 @@ fn serve_refuses_timing_values_it_cannot_run_before_its_ready_line() {
             &["--timing", "realtime", "--duration-s", "nan"],
             "--duration-s: NaN s is not within (0, 3600] s",
         ),
-        (&["--probe-s", "100"], "--probe-s: 100 s is not within [0, 60] s"),
+        (
+            &["--probe-s", "100"],
+            "--probe-s: 100 s is not within [0, 60] s",
+        ),
     ] {
         let mut args = vec!["serve", "--scene", &scene, "--fsm", "slcan:pty"];
         args.extend_from_slice(flags);

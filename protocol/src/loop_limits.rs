@@ -30,7 +30,13 @@ pub const MAX_WATCHDOG_S: f64 = 86_400.0;
 /// No period allowed, more than [`MAX_WATCHDOG_PERIODS`], or a whole wait above
 /// [`MAX_WATCHDOG_S`].
 pub fn check_watchdog(field: &str, periods: u32, allowance_s: f64) -> Result<(), Invalid> {
-    check_count(field, u64::from(periods), 1, MAX_WATCHDOG_PERIODS, "periods")?;
+    check_count(
+        field,
+        u64::from(periods),
+        1,
+        MAX_WATCHDOG_PERIODS,
+        "periods",
+    )?;
     let whole_s = f64::from(periods) * allowance_s;
     if whole_s > MAX_WATCHDOG_S {
         return Err(Invalid::new(

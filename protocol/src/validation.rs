@@ -207,11 +207,7 @@ impl fmt::Display for Allowed {
             (true, false) => write!(
                 f,
                 "finite values {} {}{unit}",
-                if self.min_included {
-                    "from"
-                } else {
-                    "above"
-                },
+                if self.min_included { "from" } else { "above" },
                 number(self.min)
             ),
             (false, true) => write!(
@@ -289,7 +285,10 @@ mod tests {
             "NaN s is not within (0, 60] s"
         );
         assert_eq!(
-            Allowed::closed(1.0, 99.0, "").check("p", 0.5).unwrap_err().reason,
+            Allowed::closed(1.0, 99.0, "")
+                .check("p", 0.5)
+                .unwrap_err()
+                .reason,
             "0.5 is not within [1, 99]"
         );
     }
@@ -340,7 +339,10 @@ mod tests {
             error.under("lead_in").as_flag("--lead-in-s").to_string(),
             "--lead-in-s: -1 s is not within (0, 3600] s"
         );
-        assert_eq!(flag_of("timing.lockstep_answer_allowance_s"), "--lockstep-answer-allowance-s");
+        assert_eq!(
+            flag_of("timing.lockstep_answer_allowance_s"),
+            "--lockstep-answer-allowance-s"
+        );
     }
 
     #[test]

@@ -16,7 +16,11 @@ fn scenario_with(dir: &Path, trajectory: serde_json::Value, power: serde_json::V
 }
 
 /// The fixture scenario `name` (its paths made absolute) changed by `edit`, written into `dir`.
-pub fn edited_scenario(dir: &Path, name: &str, edit: impl FnOnce(&mut serde_json::Value)) -> String {
+pub fn edited_scenario(
+    dir: &Path,
+    name: &str,
+    edit: impl FnOnce(&mut serde_json::Value),
+) -> String {
     let path = fixture(&format!("scenarios/{name}.json"));
     let mut scenario: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&path).expect("the fixture")).expect("JSON");
@@ -39,7 +43,10 @@ fn refused_before_any_output(args: &[&str], out: &Path, message: &str) {
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert_eq!(output.status.code(), Some(1), "{args:?}: {stderr}");
     assert!(stderr.contains(message), "{args:?}: {stderr}");
-    assert!(!out.exists(), "{args:?}: refused before the output folder is made");
+    assert!(
+        !out.exists(),
+        "{args:?}: refused before the output folder is made"
+    );
 }
 
 #[test]
@@ -56,7 +63,15 @@ fn timing_values_no_end_can_run_are_refused_by_the_host_naming_file_field_or_fla
     refused_before_any_output(&["scan", &scenario, "--out", out_arg], &out, &message);
     // Without an emulator the host itself once panicked on it (exit 101).
     refused_before_any_output(
-        &["scan", &scenario, "--no-emulator", "--fsm", "slcan:/nonexistent", "--out", out_arg],
+        &[
+            "scan",
+            &scenario,
+            "--no-emulator",
+            "--fsm",
+            "slcan:/nonexistent",
+            "--out",
+            out_arg,
+        ],
         &out,
         &message,
     );

@@ -168,12 +168,12 @@ impl ScanOptions {
         timing.emulator_cpu = self.emulator_cpu.or(timing.emulator_cpu);
         timing.sched_fifo_priority = self.sched_fifo_priority.or(timing.sched_fifo_priority);
         timing.probe_s = self.probe_s.unwrap_or(timing.probe_s);
-        scenario.check_values().map_err(|invalid| {
-            match self.flag_of(&invalid.field) {
+        scenario
+            .check_values()
+            .map_err(|invalid| match self.flag_of(&invalid.field) {
                 Some(flag) => invalid.as_flag(flag),
                 None => invalid.in_file(&scenario.path),
-            }
-        })?;
+            })?;
         Ok(scenario)
     }
 
@@ -182,7 +182,9 @@ impl ScanOptions {
         let given = |given: bool, flag: &'static str| given.then_some(flag);
         match field {
             "duration_s" => given(self.duration_s.is_some(), "--duration-s"),
-            "timing.watchdog_periods" => given(self.watchdog_periods.is_some(), "--watchdog-periods"),
+            "timing.watchdog_periods" => {
+                given(self.watchdog_periods.is_some(), "--watchdog-periods")
+            }
             "lead_in.duration_s" => given(self.lead_in_s.is_some(), "--lead-in-s"),
             "timing.mode" => [
                 (self.timing.is_some(), "--timing"),

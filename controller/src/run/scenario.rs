@@ -134,14 +134,18 @@ impl TimingConfig {
             TimingMode::Lockstep => self.lockstep_answer_allowance_s,
             TimingMode::Realtime => period_s,
         };
-        loop_limits::check_watchdog("timing.watchdog_periods", self.watchdog_periods, allowance_s)?;
+        loop_limits::check_watchdog(
+            "timing.watchdog_periods",
+            self.watchdog_periods,
+            allowance_s,
+        )?;
         let asked =
             self.host_options() != RealtimeOptions::default() || self.emulator_cpu.is_some();
         if asked && self.mode == TimingMode::Lockstep {
             return Err(Invalid::new(
                 "timing.mode",
                 "busy_poll, cpu, emulator_cpu and sched_fifo_priority apply to real time only \
-                 (`\"mode\": \"realtime\"` or `--timing realtime`)"
+                 (`\"mode\": \"realtime\"` or `--timing realtime`)",
             ));
         }
         for (options, cpu_field) in [
@@ -501,7 +505,10 @@ mod tests {
             sched_fifo_priority: Some(100),
             ..realtime()
         };
-        assert_eq!(field(priority).as_deref(), Some("timing.sched_fifo_priority"));
+        assert_eq!(
+            field(priority).as_deref(),
+            Some("timing.sched_fifo_priority")
+        );
         let no_such_cpu = TimingConfig {
             emulator_cpu: Some(usize::MAX),
             ..realtime()
@@ -513,7 +520,10 @@ mod tests {
             emulator_cpu: Some(0),
             ..realtime()
         };
-        assert_eq!(field(one_cpu_for_two_spinners).as_deref(), Some("timing.emulator_cpu"));
+        assert_eq!(
+            field(one_cpu_for_two_spinners).as_deref(),
+            Some("timing.emulator_cpu")
+        );
         let probe = TimingConfig {
             probe_s: -1.0,
             ..realtime()

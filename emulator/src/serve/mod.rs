@@ -98,8 +98,10 @@ impl ServeConfig {
     /// # Errors
     /// The first value out of its range.
     pub fn check(&self, period_s: f64) -> Result<(), Invalid> {
-        loop_limits::ANSWER_ALLOWANCE_S
-            .check("lockstep_answer_allowance_s", self.lockstep_answer_allowance_s)?;
+        loop_limits::ANSWER_ALLOWANCE_S.check(
+            "lockstep_answer_allowance_s",
+            self.lockstep_answer_allowance_s,
+        )?;
         let allowance_s = match self.timing {
             TimingMode::Lockstep => self.lockstep_answer_allowance_s,
             TimingMode::Realtime => period_s,
@@ -229,7 +231,9 @@ pub struct ServeLinks {
 /// ([`ServeConfig::check`]), a link that does not open, a plant error.
 pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
     let (scene, plant) = load_plant(&config.scene, config.seed)?;
-    config.check(plant.period_s()).map_err(Invalid::as_own_flag)?;
+    config
+        .check(plant.period_s())
+        .map_err(Invalid::as_own_flag)?;
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
