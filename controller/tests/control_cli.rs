@@ -171,13 +171,14 @@ fn conformance_refuses_rates_and_allowances_that_cannot_run_instead_of_panicking
         ("--rate-hz", "nan"),
         ("--rate-hz", "1e300"),
         ("--answer-allowance-s", "0"),
+        ("--answer-allowance-s", "1e300"),
         ("--watchdog-periods", "0"),
     ] {
         let out = scanhil(&["conformance", "--fsm", "slcan:/nonexistent", flag, value]);
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{flag} {value}: {stderr}");
         assert!(
-            stderr.contains(&format!("error: {flag} ")),
+            stderr.contains(&format!("error: {flag}: ")),
             "{flag} {value}: {stderr}"
         );
         assert!(!stderr.contains("panicked"), "{stderr}");
