@@ -24,7 +24,7 @@ targets=(slcan candump ild_stream can_messages ild_commands ild_replies decode p
 export AFL_NO_UI=1 AFL_NO_AFFINITY=1 AFL_SKIP_CPUFREQ=1 AFL_I_DONT_CARE_ABOUT_MISSING_CRASHES=1
 
 build() {
-  CARGO_TARGET_DIR=target/afl nice cargo afl build --release -p scanhil-fuzz --features afl
+  CARGO_TARGET_DIR=target/afl cargo afl build --release -p scanhil-fuzz --features afl
 }
 
 dictionary() {

@@ -54,7 +54,7 @@ pub fn decode(
 }
 
 /// Lines a [`Report`] writes at most; past that the items are counted, not shown.
-const MAX_SHOWN: u64 = 1000;
+pub const MAX_SHOWN: u64 = 1000;
 
 /// Bytes of a bad line an error quotes at most (the byte count says how long it was).
 const MAX_QUOTED: usize = 80;
