@@ -19,6 +19,19 @@ pub struct LinkError {
     pub message: String,
 }
 
+/// How a run left the mirror's coils: the zero command the host sent at its end (after the
+/// last period, or on the way out of an early stop), and whether the node acknowledged it
+/// (its Status(ready) answering the controller's, which it sends after it took the zero
+/// command: the zero is in force). An early stop commands zero best effort and awaits no
+/// answer: the link may be gone, and the node's own watchdog zeroes the coils then.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct CoilsAtEnd {
+    /// The host sent CoilCommand(0) at the end.
+    pub zero_commanded: bool,
+    /// The node answered the end of the run after taking it.
+    pub acknowledged: bool,
+}
+
 /// One control period with a plant.
 pub trait PlantLink {
     /// Delivers the coil command of this period (A, actuator axes) and returns the mirror
@@ -28,6 +41,12 @@ pub trait PlantLink {
 
     /// The control period, s.
     fn period_s(&self) -> f64;
+
+    /// Ends the session with the coils commanded to zero, and says how that went (`None`: a
+    /// plant with no node to leave driven, such as the nominal model in process).
+    fn end(&mut self) -> Option<CoilsAtEnd> {
+        None
+    }
 }
 
 /// The nominal model as a plant: `ZOH(eq. 4)` per sensing axis with the command acting one

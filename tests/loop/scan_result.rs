@@ -1,8 +1,8 @@
 //! A whole lockstep scan of the Duplo brick over ptys.
 
 use crate::util::{
-    assert_gapless, assert_success, decode_candump, decode_ild, fixture, number, report,
-    run_scanhil,
+    assert_coils_at_zero, assert_gapless, assert_success, decode_candump, decode_ild, fixture,
+    number, report, run_scanhil,
 };
 
 /// The stud height of the Duplo scene, mm (the paper's mechanical reference).
@@ -29,6 +29,7 @@ fn duplo_stud_height_tracking_and_recordings() {
     ]);
     assert_success(&output, "scanhil scan test-duplo-stud");
     let report = report(out.path());
+    assert_coils_at_zero(&report);
 
     let height = number(&report, "/imaging/feature/height_mm");
     let std = number(&report, "/imaging/feature/std_mm");
@@ -68,7 +69,12 @@ fn duplo_stud_height_tracking_and_recordings() {
     assert_eq!(number(&report, "/frame/start_s"), 1.0);
     let mirror = decode_candump(&out.path().join("fsm.log"));
     assert_eq!(mirror.angle_seqs.len(), periods);
-    assert_eq!(mirror.command_seqs.len(), periods);
+    // One command a period, then the end's zero.
+    assert_eq!(mirror.command_seqs.len(), periods + 1);
+    assert_eq!(
+        mirror.last_command_a,
+        Some(scanhil_protocol::plant_units::ActuatorPair::default())
+    );
     assert_gapless(&mirror.angle_seqs, "AngleReading");
     assert_gapless(&mirror.command_seqs, "CoilCommand");
 
