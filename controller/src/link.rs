@@ -9,7 +9,7 @@ use scanhil_protocol::plant_units::{
 };
 
 use crate::plant_model::PlantModel;
-use crate::sos::{Section, SectionState};
+use crate::sos::Cascade;
 
 /// Why an exchange with the plant failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -50,11 +50,10 @@ pub trait PlantLink {
 }
 
 /// The nominal model as a plant: `ZOH(eq. 4)` per sensing axis with the command acting one
-/// period late, and optional white Gaussian angle noise (seeded).
+/// period late (plus the model's extra delay), and optional white Gaussian angle noise (seeded).
 #[derive(Debug, Clone)]
 pub struct NominalPlantLink {
-    zoh: Section,
-    states: [SectionState; 2],
+    axes: [Cascade; 2],
     period_s: f64,
     noise_rms_rad: f64,
     rng: ChaCha8Rng,
@@ -65,8 +64,7 @@ impl NominalPlantLink {
     #[must_use]
     pub fn new(model: &PlantModel, period_s: f64, noise_rms_rad: f64, seed: u64) -> Self {
         Self {
-            zoh: model.zoh(period_s),
-            states: [SectionState::default(); 2],
+            axes: [model.sampled(period_s), model.sampled(period_s)],
             period_s,
             noise_rms_rad,
             rng: ChaCha8Rng::seed_from_u64(seed),
@@ -89,12 +87,8 @@ impl PlantLink for NominalPlantLink {
             });
         }
         let input = sensing_from_actuator(coil_currents_a);
-        let alpha = self
-            .zoh
-            .step(&mut self.states[0], input.alpha / AMPS_PER_INPUT_UNIT);
-        let beta = self
-            .zoh
-            .step(&mut self.states[1], input.beta / AMPS_PER_INPUT_UNIT);
+        let alpha = self.axes[0].step(input.alpha / AMPS_PER_INPUT_UNIT);
+        let beta = self.axes[1].step(input.beta / AMPS_PER_INPUT_UNIT);
         let mut out = SensingPair {
             alpha: alpha * RAD_PER_OUTPUT_UNIT,
             beta: beta * RAD_PER_OUTPUT_UNIT,

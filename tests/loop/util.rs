@@ -161,6 +161,25 @@ pub fn number(value: &serde_json::Value, pointer: &str) -> f64 {
         .unwrap_or_else(|| panic!("{pointer} is not a number in {value:#}"))
 }
 
+/// Asserts the frame's measured tracking error over the predicted one is inside each axis'
+/// band (too good fails as well as too bad).
+pub fn assert_tracks_as_predicted(report: &serde_json::Value, bands: &[(&str, (f64, f64))]) {
+    for (axis, band) in bands {
+        let measured = number(
+            report,
+            &format!("/tracking_error/frame/{axis}/rms_relative"),
+        );
+        let predicted = number(
+            report,
+            &format!("/predicted_tracking_error/{axis}_rms_relative"),
+        );
+        assert!(
+            (band.0..=band.1).contains(&(measured / predicted)),
+            "{axis}: measured {measured}, predicted {predicted}, band {band:?}"
+        );
+    }
+}
+
 /// What a recording held.
 #[derive(Debug, Default)]
 pub struct DecodedRecording {
