@@ -5,6 +5,7 @@
 #   fuzz/afl.sh run TARGET SECONDS [OUT]   one target for SECONDS (default OUT: fuzz/out)
 #   fuzz/afl.sh all SECONDS [OUT]          every target, two at a time
 #   fuzz/afl.sh summary [OUT]              a table of each run's fuzzer_stats
+#   fuzz/afl.sh rss TARGET [OUT]           the largest peak RSS over the run's inputs
 #
 # Needs `cargo install cargo-afl` and `cargo afl config --build` once. Each run starts from
 # fuzz/corpus/TARGET, limits the target's memory to AFL_MEM_MB (RLIMIT_AS, default 512 MB: an
@@ -67,6 +68,20 @@ summary() {
   done
 }
 
+# Replays every input the run kept (queue, crashes, hangs), one process each, and prints the
+# largest peak RSS (kB, from /usr/bin/time) and the input that reached it.
+rss() {
+  local target=$1 out=${2:-fuzz/out} largest=0 worst=""
+  for input in "$out/$target"/default/{queue,crashes,hangs}/id:*; do
+    [[ -f $input ]] || continue
+    local kb
+    /usr/bin/time -f %M -o "$out/rss.txt" "$binary" "$target" < "$input" > /dev/null 2>&1 || true
+    kb=$(tail -1 "$out/rss.txt")
+    if ((kb > largest)); then largest=$kb worst=$input; fi
+  done
+  echo "$target: peak RSS $largest kB ($worst)"
+}
+
 case "${1:-}" in
   build) build ;;
   run) run "$2" "$3" "${4:-fuzz/out}" ;;
@@ -78,5 +93,6 @@ case "${1:-}" in
     done
     ;;
   summary) summary "${2:-fuzz/out}" ;;
-  *) sed -n '2,13p' "$0" >&2; exit 2 ;;
+  rss) rss "$2" "${3:-fuzz/out}" ;;
+  *) sed -n '2,14p' "$0" >&2; exit 2 ;;
 esac
