@@ -39,6 +39,13 @@ fn step_json_reports_parts_and_the_delayed_response_on_the_chosen_axis() {
         report["active_parts"],
         serde_json::json!(["axes", "cross_talk"])
     );
+    let costed: Vec<&str> = report["parts"]["parts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["part"].as_str().unwrap())
+        .collect();
+    assert_eq!(costed, ["axes", "cross_talk"]);
     let samples = report["samples"].as_array().unwrap();
     assert_eq!(samples.len(), 50);
     assert_eq!(samples[0]["true_angles_rad"]["beta"], 0.0);
@@ -64,7 +71,13 @@ fn step_table_names_the_active_parts() {
     assert!(out.status.success());
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("active parts: [axes]"), "{text}");
-    assert_eq!(text.lines().count(), 2 + 3);
+    assert!(
+        text.lines().nth(1).is_some_and(
+            |line| line.starts_with("part costs, us per period") && line.contains("axes ")
+        ),
+        "{text}"
+    );
+    assert_eq!(text.lines().count(), 3 + 3);
 }
 
 #[test]

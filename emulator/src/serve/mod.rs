@@ -197,6 +197,10 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
         );
     }
     let (scene, plant) = load_plant(&config.scene, config.seed)?;
+    // What each part costs, measured before any link opens (the plant that runs is not
+    // touched).
+    let part_costs = crate::part_cost::measure(&scene, crate::part_cost::CostTiming::default())
+        .with_context(|| format!("timing the parts of {}", config.scene.display()))?;
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -275,6 +279,7 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
             "link": link_summary(&links.fsm),
             "sensor": links.sensor.summary(),
             "sensor_faults": node.sensor_fault_counts(),
+            "parts": part_costs,
             "timing": report.timing,
             "error": report.error,
         });
