@@ -217,8 +217,10 @@ pub async fn run(
         // allowance is dropped (and counted), as frames on a bus nobody reads are lost; an
         // earlier period's bytes go first, and while they wait this period's are not queued.
         let written_before = links.fsm.bytes_written();
-        // The period's samples go onto the sensor's line now; what has arrived by this tick
-        // goes out with its frames.
+        // The period's samples go onto the sensor's line now (outside the send allowance, so
+        // each is counted once, sent or dropped, even when the allowance runs out before the
+        // sensor's turn: they wait for the next tick); what has arrived by this tick goes out
+        // with its frames.
         links.sensor.offer(&samples);
         let now_s = k as f64 * node.plant().period_s();
         let send = async {

@@ -326,9 +326,9 @@ impl SensorPort {
                 port.write(&due)?;
             }
             SensorPort::Can(clock, pending) => {
-                for sample in pending.drain(..) {
-                    clock.measured(&sample);
-                    clock.sent(sample.counter);
+                // A sample leaves `pending` only once its frame is queued: a release cut short
+                // (the send allowance ran out) leaves the rest for the next one.
+                while let Some(&sample) = pending.first() {
                     let sensor_time_us =
                         ((sample.t_s * 1e6).round() as u64 & u64::from(U24_MAX)) as u32;
                     let distance = Distance {
@@ -337,6 +337,9 @@ impl SensorPort {
                         sensor_time_us,
                     };
                     fsm.queue(&Message::Distance(distance).encode()?).await?;
+                    pending.remove(0);
+                    clock.measured(&sample);
+                    clock.sent(sample.counter);
                 }
             }
         }
