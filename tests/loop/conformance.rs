@@ -1,8 +1,12 @@
 //! `scanhil conformance` against the emulator, and against deliberately non-conforming nodes
 //! (`scanhil-emulator serve --misbehave RULE`), each failing exactly the check(s) for its rule
-//! with the reason in the JUnit XML.
+//! with the reason in the JUnit XML and what to look at on the bench; on a real link (a node
+//! conformance did not start) without `--destructive`, no command beyond the amplifiers' limit
+//! and no garbage line ever reaches the node; `--check`/`--skip` select the checks.
 
-use crate::util::{assert_success, fixture, run_scanhil};
+use std::time::Duration;
+
+use crate::util::{ServedEmulator, assert_success, fixture, run_scanhil};
 
 /// The mirror node's checks, in the order conformance runs them (SLCAN link, no sensor).
 const FSM_CHECKS: [&str; 8] = [
@@ -76,25 +80,29 @@ struct Verdict {
     emulator_code: Option<i32>,
 }
 
-/// Runs `scanhil conformance` on the mirror node of a hand-started emulator served with
-/// `--misbehave rule` (its watchdog the 50 periods of 10 ms conformance expects).
-fn conformance_against(rule: &str) -> Verdict {
+/// A hand-started emulator's mirror node on an SLCAN pty, its watchdog the 50 periods of 10 ms
+/// conformance expects, `extra` added to its arguments.
+fn served_node(extra: &[&str]) -> ServedEmulator {
     let scene = fixture("scenes/duplo-2x4-130mm.json");
-    let mut emulator = crate::util::ServedEmulator::start(&[
+    let mut args = vec![
         "--scene",
         &scene,
         "--fsm",
         "slcan:pty",
         "--watchdog-periods",
         "50",
-        "--misbehave",
-        rule,
-    ]);
-    assert_eq!(emulator.ready["misbehave"], rule, "{}", emulator.ready);
+    ];
+    args.extend_from_slice(extra);
+    ServedEmulator::start(&args)
+}
+
+/// Runs `scanhil conformance` on `emulator`'s mirror node (a real link to conformance: it did
+/// not start the node) with `extra` arguments; returns its output and JUnit XML.
+fn conformance_of(emulator: &ServedEmulator, extra: &[&str]) -> (std::process::Output, String) {
     let out = tempfile::tempdir().expect("a temporary folder");
     let junit = out.path().join("conformance.xml");
     let fsm = format!("slcan:{}", emulator.path("fsm"));
-    let output = run_scanhil(&[
+    let mut args = vec![
         "conformance",
         "--fsm",
         &fsm,
@@ -102,7 +110,18 @@ fn conformance_against(rule: &str) -> Verdict {
         "50",
         "--junit",
         junit.to_str().expect("UTF-8 path"),
-    ]);
+    ];
+    args.extend_from_slice(extra);
+    let output = run_scanhil(&args);
+    (output, std::fs::read_to_string(&junit).unwrap_or_default())
+}
+
+/// Runs `scanhil conformance --destructive` on the mirror node of a hand-started emulator
+/// served with `--misbehave rule`.
+fn conformance_against(rule: &str) -> Verdict {
+    let mut emulator = served_node(&["--misbehave", rule]);
+    assert_eq!(emulator.ready["misbehave"], rule, "{}", emulator.ready);
+    let (output, xml) = conformance_of(&emulator, &["--destructive"]);
     let emulator_code = emulator
         .child
         .try_wait()
@@ -113,7 +132,7 @@ fn conformance_against(rule: &str) -> Verdict {
         rule: rule.to_owned(),
         code: output.status.code(),
         table: String::from_utf8_lossy(&output.stdout).into_owned(),
-        xml: std::fs::read_to_string(&junit).unwrap_or_default(),
+        xml,
         emulator_code,
     }
 }
@@ -149,6 +168,10 @@ impl Verdict {
         );
         assert_eq!(xml.matches("<failure ").count(), failing.len(), "{xml}");
         for (check, reasons) in failing {
+            assert!(
+                table.contains(&format!("\non the bench, {check}: look at ")),
+                "{rule}: {check}'s bench line missing from:\n{table}"
+            );
             let message = failure_message(xml, check);
             for reason in *reasons {
                 assert!(
@@ -293,4 +316,123 @@ fn a_misbehaving_node_is_refused_in_real_time() {
         stderr.contains("--misbehave: the non-conforming nodes run in lockstep only"),
         "{stderr}"
     );
+}
+
+/// The rig's amplifier limit, A (fixtures/rigs/paper-bench.json).
+fn amplifier_limit_a() -> f64 {
+    let rig: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(fixture("rigs/paper-bench.json")).expect("the rig file"),
+    )
+    .expect("rig JSON");
+    rig["mirror"]["amplifier_current_limit_a"]
+        .as_f64()
+        .expect("an amplifier limit")
+}
+
+#[test]
+fn a_real_link_without_destructive_never_commands_beyond_the_amplifier_limit() {
+    // The node checks every command it received: the largest current any asked for, and the
+    // garbage SLCAN lines that reached it.
+    let emulator = served_node(&[]);
+    let (output, xml) = conformance_of(&emulator, &[]);
+    assert_success(&output, "scanhil conformance on a real link");
+    // The last check trips the node's watchdog on purpose: it ends there, coils at zero.
+    let (_, summary) = emulator.finish(Duration::from_secs(20));
+    assert_eq!(summary["ended_by"], "watchdog", "{summary}");
+    assert_eq!(
+        summary["held_coil_currents_a"],
+        serde_json::json!({"a": 0.0, "b": 0.0}),
+        "{summary}"
+    );
+    let largest_a = summary["node"]["largest_command_a"].as_f64().unwrap();
+    assert!(
+        largest_a <= amplifier_limit_a() && largest_a > 0.29,
+        "the drive reached the node, nothing beyond {} A: {largest_a} A",
+        amplifier_limit_a()
+    );
+    assert_eq!(summary["link"]["slcan_malformed_lines"], 0, "{summary}");
+    let table = String::from_utf8_lossy(&output.stdout);
+    for check in ["over_current_fault", "survives_garbage_slcan_lines"] {
+        let line = table.lines().find(|line| line.contains(check)).unwrap();
+        assert!(
+            line.contains("SKIP") && line.contains("not run on a real link without --destructive"),
+            "{line}"
+        );
+    }
+    assert!(
+        table.contains("8 checks, 6 passed, 0 failed, 2 skipped"),
+        "{table}"
+    );
+    assert!(
+        xml.contains("failures=\"0\" errors=\"0\" skipped=\"2\""),
+        "{xml}"
+    );
+    assert_eq!(xml.matches("<skipped message=").count(), 2, "{xml}");
+    // With --destructive the same node is told 8 A and sent garbage (the check can fail).
+    let emulator = served_node(&[]);
+    let (output, _) = conformance_of(&emulator, &["--destructive"]);
+    assert_success(&output, "scanhil conformance --destructive");
+    let (_, summary) = emulator.finish(Duration::from_secs(20));
+    assert_eq!(summary["node"]["largest_command_a"], 8.0, "{summary}");
+    assert!(summary["link"]["slcan_malformed_lines"].as_u64().unwrap() > 0);
+}
+
+#[test]
+fn check_and_skip_select_the_checks_and_the_session_still_ends_at_zero() {
+    let emulator = served_node(&[]);
+    let (output, xml) = conformance_of(
+        &emulator,
+        &[
+            "--check",
+            "angles_in_range",
+            "--check",
+            "status_frames",
+            "--check",
+            "link_timeout_fault",
+            "--skip",
+            "link_timeout_fault",
+        ],
+    );
+    assert_success(&output, "scanhil conformance --check --skip");
+    let table = String::from_utf8_lossy(&output.stdout);
+    let rows: Vec<&str> = table
+        .lines()
+        .filter(|line| line.starts_with("fsm "))
+        .collect();
+    assert_eq!(rows.len(), 2, "{table}");
+    assert!(rows[0].contains("angles_in_range") && rows[1].contains("status_frames"));
+    assert_eq!(xml.matches("<testcase ").count(), 2, "{xml}");
+    // No watchdog check: the session ends with the zero command the node acknowledges.
+    let (code, summary) = emulator.finish(Duration::from_secs(20));
+    assert_eq!(code, Some(0), "{summary}");
+    assert_eq!(summary["outcome"], "finished", "{summary}");
+    assert_eq!(summary["final_state"], "ready", "{summary}");
+    assert_eq!(
+        summary["held_coil_currents_a"],
+        serde_json::json!({"a": 0.0, "b": 0.0}),
+        "{summary}"
+    );
+}
+
+#[test]
+fn an_unknown_or_unsafe_check_is_refused_before_any_link_opens() {
+    // The link does not exist: a refusal naming the flag comes before any attempt to open it.
+    for (args, expected) in [
+        (
+            vec!["--check", "frob"],
+            "--check: no conformance check `frob` (the checks: answers_in_time,",
+        ),
+        (
+            vec!["--check", "over_current_fault"],
+            "`over_current_fault` can harm a real bench and runs on one only with --destructive",
+        ),
+    ] {
+        let mut all = vec!["conformance", "--fsm", "slcan:/nonexistent/tty"];
+        all.extend(args);
+        let output = run_scanhil(&all);
+        assert!(!output.status.success());
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(stderr.contains(expected), "{stderr}");
+        assert!(!stderr.contains("nonexistent"), "{stderr}");
+    }
 }

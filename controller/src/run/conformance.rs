@@ -18,6 +18,12 @@
 //! - `link_timeout_fault`: silence for the watchdog's periods raises a LinkTimeout fault
 //!   (run last: the node leaves the session).
 //!
+//! Which checks run is the caller's [`Selection`] ([`super::check_selection`]): on a real
+//! link `over_current_fault` and `survives_garbage_slcan_lines` run only with `--destructive`
+//! and are listed as skipped otherwise. A run without `link_timeout_fault` ends its session
+//! with the zero command the node acknowledges ([`MirrorLink::end_session`]), so the coils are
+//! at zero at its end either way.
+//!
 //! Sensor node (ILD stream, while the mirror node is stepped):
 //! - `sensor_values_decode`: the stream decodes with no resynchronisation.
 //! - `sensor_counter_gapless`: measured-value counters without gaps.
@@ -37,6 +43,7 @@ use scanhil_protocol::message::FaultKind;
 use scanhil_protocol::plant_units::{ActuatorPair, FULL_RANGE_DEG, SensingPair};
 use scanhil_protocol::slcan::SlcanMessage;
 
+use super::check_selection::{Decision, Selection, spec};
 use super::loop_error::LoopError;
 use super::mirror_link::MirrorLink;
 use super::sensor_link::SensorLink;
@@ -81,12 +88,87 @@ pub struct CheckResult {
     pub name: &'static str,
     /// Which node it checked.
     pub node: &'static str,
-    /// Passed?
-    pub passed: bool,
-    /// What was seen.
+    /// Passed, failed, or not run.
+    pub outcome: Outcome,
+    /// What was seen (skipped: why it did not run).
     pub detail: String,
     /// How long it took, s.
     pub time_s: f64,
+}
+
+/// A check's outcome.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Outcome {
+    /// It ran and passed.
+    Passed,
+    /// It ran and failed.
+    Failed,
+    /// It did not run (a destructive check on a real link without `--destructive`).
+    Skipped,
+}
+
+impl CheckResult {
+    /// Whether the check ran and passed.
+    #[must_use]
+    pub fn passed(&self) -> bool {
+        self.outcome == Outcome::Passed
+    }
+
+    /// Whether the check ran and failed.
+    #[must_use]
+    pub fn failed(&self) -> bool {
+        self.outcome == Outcome::Failed
+    }
+}
+
+/// The verdicts of a run as the checks come: only the selected checks', and the ones left
+/// out for the bench's safety as skipped.
+struct Verdicts<'a> {
+    selection: &'a Selection,
+    results: Vec<CheckResult>,
+}
+
+impl Verdicts<'_> {
+    /// Whether check `name` is to run now; one left out for the bench's safety is listed as
+    /// skipped with the reason.
+    fn start(&mut self, name: &'static str) -> bool {
+        match self.selection.decide(name) {
+            Decision::Run => true,
+            Decision::Deselected => false,
+            Decision::Skipped(why) => {
+                self.push(name, Outcome::Skipped, why, 0.0);
+                false
+            }
+        }
+    }
+
+    /// The verdict of check `name`, which ran.
+    fn add(&mut self, name: &'static str, passed: bool, detail: String, time_s: f64) {
+        let outcome = if passed {
+            Outcome::Passed
+        } else {
+            Outcome::Failed
+        };
+        self.push(name, outcome, detail, time_s);
+    }
+
+    /// The verdict of a check of the timing phase, which always runs: kept when selected.
+    fn add_if_selected(&mut self, name: &'static str, passed: bool, detail: String) {
+        if self.selection.runs(name) {
+            self.add(name, passed, detail, 0.0);
+        }
+    }
+
+    fn push(&mut self, name: &'static str, outcome: Outcome, detail: String, time_s: f64) {
+        self.results.push(CheckResult {
+            name,
+            node: spec(name).map_or("fsm", |check| check.node),
+            outcome,
+            detail,
+            time_s,
+        });
+    }
 }
 
 /// The drive during the timing and range checks: a sine on each coil.
@@ -131,12 +213,16 @@ impl std::fmt::Display for Excitation {
     }
 }
 
-/// Runs the mirror node's checks and, when given, the sensor's.
+/// Runs the mirror node's checks and, when given, the sensor's, as `selection` says.
 pub async fn run_checks(
     mirror: &mut MirrorLink,
     mut sensor: Option<&mut SensorLink>,
+    selection: &Selection,
 ) -> Vec<CheckResult> {
-    let mut results = Vec::new();
+    let mut verdicts = Verdicts {
+        selection,
+        results: Vec::new(),
+    };
     let mut k = 0u64;
     // Timing, sequence, range, status (and the sensor stream alongside), under the drive.
     let start = Instant::now();
@@ -175,22 +261,22 @@ pub async fn run_checks(
         }
         k += 1;
     }
-    results.push(CheckResult {
-        name: "answers_in_time",
-        node: "fsm",
-        passed: timing.passed(),
-        detail: timing.detail(k),
-        time_s: start.elapsed().as_secs_f64(),
-    });
+    if selection.runs("answers_in_time") {
+        verdicts.add(
+            "answers_in_time",
+            timing.passed(),
+            timing.detail(k),
+            start.elapsed().as_secs_f64(),
+        );
+    }
     let counters = mirror.counters();
     // A reading behind the one awaited is as much out of sequence as one ahead of it.
     let out_of_sequence = counters.angle_sequence_gaps + counters.late_readings;
     let in_sequence = out_of_sequence == 0 && counters.angle_readings >= k;
-    results.push(CheckResult {
-        name: "angle_sequence_gapless",
-        node: "fsm",
-        passed: in_sequence,
-        detail: match first_gap {
+    verdicts.add_if_selected(
+        "angle_sequence_gapless",
+        in_sequence,
+        match first_gap {
             Some(first) if !in_sequence => format!(
                 "{out_of_sequence} of {} readings out of sequence; first: {first}",
                 counters.angle_readings
@@ -200,29 +286,77 @@ pub async fn run_checks(
                 counters.angle_readings
             ),
         },
-        time_s: 0.0,
-    });
+    );
     let in_range = angles_seen.verdict(k);
-    results.push(CheckResult {
-        name: "angles_in_range",
-        node: "fsm",
-        passed: in_range.is_ok(),
-        detail: in_range.unwrap_or_else(|e| e),
-        time_s: 0.0,
-    });
+    verdicts.add_if_selected(
+        "angles_in_range",
+        in_range.is_ok(),
+        in_range.unwrap_or_else(|e| e),
+    );
     let statuses = mirror.counters().status_frames;
-    results.push(CheckResult {
-        name: "status_frames",
-        node: "fsm",
-        passed: statuses > 0,
-        detail: if statuses > 0 {
+    verdicts.add_if_selected(
+        "status_frames",
+        statuses > 0,
+        if statuses > 0 {
             format!("{statuses} status frames in {k} periods")
         } else {
             format!("no Status frame from the node in {k} periods (a heartbeat expected)")
         },
-        time_s: 0.0,
-    });
-    // Over-current fault.
+    );
+    if verdicts.start("over_current_fault") {
+        k = over_current_fault(mirror, k, &mut verdicts).await;
+    }
+    if verdicts.start("survives_malformed_frames") {
+        k = survives_malformed_frames(mirror, k, &mut verdicts).await;
+    }
+    // Garbage SLCAN lines (SLCAN only: a line of bytes).
+    let slcan = mirror.can_link_mut().bytes_written().is_some();
+    if slcan && verdicts.start("survives_garbage_slcan_lines") {
+        let t0 = Instant::now();
+        if let Some(survived) = survive_garbage_lines(mirror, k).await {
+            verdicts.add(
+                "survives_garbage_slcan_lines",
+                survived.is_ok(),
+                survived.unwrap_or_else(|e| e),
+                t0.elapsed().as_secs_f64(),
+            );
+        }
+    }
+    // Sensor stream.
+    if let Some(sensor) = sensor {
+        let _ = sensor.drain(Duration::from_millis(100)).await;
+        for (name, passed, detail) in sensor_checks(sensor) {
+            verdicts.add_if_selected(name, passed, detail);
+        }
+        if let Some(link) = sensor.ild_link_mut()
+            && verdicts.start("sensor_survives_bad_commands")
+        {
+            let t0 = Instant::now();
+            let survived = survive_bad_commands(link).await;
+            verdicts.add(
+                "sensor_survives_bad_commands",
+                survived.is_ok(),
+                survived.unwrap_or_else(|e| e),
+                t0.elapsed().as_secs_f64(),
+            );
+        }
+    }
+    if verdicts.start("link_timeout_fault") {
+        link_timeout_fault(mirror, &mut verdicts).await;
+    } else {
+        // The node is still in its session: the zero command it acknowledges ends it.
+        let _ = mirror.end_session(k).await;
+    }
+    verdicts.results
+}
+
+/// `over_current_fault` from period `k`: [`OVER_CURRENT_PERIODS`] periods at
+/// [`OVER_CURRENT_A`], as many at zero; returns the next period.
+async fn over_current_fault(
+    mirror: &mut MirrorLink,
+    mut k: u64,
+    verdicts: &mut Verdicts<'_>,
+) -> u64 {
     let t0 = Instant::now();
     let faults_before = fault_count(mirror, FaultKind::OverCurrent);
     let big = ActuatorPair {
@@ -243,11 +377,10 @@ pub async fn run_checks(
         }
     }
     let raised = fault_count(mirror, FaultKind::OverCurrent) > faults_before;
-    results.push(CheckResult {
-        name: "over_current_fault",
-        node: "fsm",
-        passed: raised && over_current_error.is_none(),
-        detail: over_current_error.unwrap_or_else(|| {
+    verdicts.add(
+        "over_current_fault",
+        raised && over_current_error.is_none(),
+        over_current_error.unwrap_or_else(|| {
             if raised {
                 format!("OverCurrent fault frame after a {OVER_CURRENT_A} A command")
             } else {
@@ -256,9 +389,17 @@ pub async fn run_checks(
                 )
             }
         }),
-        time_s: t0.elapsed().as_secs_f64(),
-    });
-    // Malformed input.
+        t0.elapsed().as_secs_f64(),
+    );
+    k
+}
+
+/// `survives_malformed_frames` at period `k`; returns the next period.
+async fn survives_malformed_frames(
+    mirror: &mut MirrorLink,
+    k: u64,
+    verdicts: &mut Verdicts<'_>,
+) -> u64 {
     let t0 = Instant::now();
     let survived = match mirror.send_malformed(k).await {
         Err(error) => Err(format!("sending malformed input: {error}")),
@@ -267,61 +408,33 @@ pub async fn run_checks(
             Err(error) => Err(format!("{sent}; then: {error}")),
         },
     };
-    results.push(CheckResult {
-        name: "survives_malformed_frames",
-        node: "fsm",
-        passed: survived.is_ok(),
-        detail: survived.unwrap_or_else(|e| e),
-        time_s: t0.elapsed().as_secs_f64(),
-    });
     // The malformed check's exchange used period k.
-    if results.last().is_some_and(|r| r.passed) {
-        k += 1;
-    }
-    // Garbage SLCAN lines (SLCAN only).
-    let t0 = Instant::now();
-    if let Some(survived) = survive_garbage_lines(mirror, k).await {
-        results.push(CheckResult {
-            name: "survives_garbage_slcan_lines",
-            node: "fsm",
-            passed: survived.is_ok(),
-            detail: survived.unwrap_or_else(|e| e),
-            time_s: t0.elapsed().as_secs_f64(),
-        });
-    }
-    // Sensor stream.
-    if let Some(sensor) = sensor {
-        let _ = sensor.drain(Duration::from_millis(100)).await;
-        results.extend(sensor_checks(sensor));
-        if let Some(link) = sensor.ild_link_mut() {
-            let t0 = Instant::now();
-            let survived = survive_bad_commands(link).await;
-            results.push(CheckResult {
-                name: "sensor_survives_bad_commands",
-                node: "sensor",
-                passed: survived.is_ok(),
-                detail: survived.unwrap_or_else(|e| e),
-                time_s: t0.elapsed().as_secs_f64(),
-            });
-        }
-    }
-    // Link timeout (last).
+    let next = if survived.is_ok() { k + 1 } else { k };
+    verdicts.add(
+        "survives_malformed_frames",
+        survived.is_ok(),
+        survived.unwrap_or_else(|e| e),
+        t0.elapsed().as_secs_f64(),
+    );
+    next
+}
+
+/// `link_timeout_fault`, last: the host falls silent and waits for the node's fault.
+async fn link_timeout_fault(mirror: &mut MirrorLink, verdicts: &mut Verdicts<'_>) {
     let t0 = Instant::now();
     let timeout = mirror.await_link_timeout_fault().await;
-    results.push(CheckResult {
-        name: "link_timeout_fault",
-        node: "fsm",
-        passed: timeout.is_ok(),
-        detail: timeout.unwrap_or_else(|error| match error {
+    let allowance = mirror.total_allowance();
+    verdicts.add(
+        "link_timeout_fault",
+        timeout.is_ok(),
+        timeout.unwrap_or_else(|error| match error {
             LoopError::LinkTimeout { waited, .. } => format!(
-                "no LinkTimeout fault from the node within {waited:?} of the host falling silent (twice the watchdog's {:?})",
-                mirror.total_allowance()
+                "no LinkTimeout fault from the node within {waited:?} of the host falling silent (twice the watchdog's {allowance:?})"
             ),
             other => format!("no LinkTimeout fault from the node after the host fell silent: {other}"),
         }),
-        time_s: t0.elapsed().as_secs_f64(),
-    });
-    results
+        t0.elapsed().as_secs_f64(),
+    );
 }
 
 /// One lockstep exchange of the checks after the timing check: period `k` with `command`, any
@@ -520,75 +633,85 @@ fn fault_count(mirror: &MirrorLink, kind: FaultKind) -> usize {
         .count()
 }
 
-fn sensor_checks(sensor: &SensorLink) -> Vec<CheckResult> {
+/// The sensor stream's checks: (name, passed, what was seen).
+fn sensor_checks(sensor: &SensorLink) -> [(&'static str, bool, String); 3] {
     let (samples, counters) = sensor.snapshot();
     let bad = samples
         .iter()
         .find(|s| matches!(s.value, IldValue::Error(IldError::Unknown(_))));
-    vec![
-        CheckResult {
-            name: "sensor_values_decode",
-            node: "sensor",
-            passed: counters.samples > 0
-                && counters.resync_bytes == 0
-                && counters.incomplete_cycles == 0,
-            detail: format!(
+    [
+        (
+            "sensor_values_decode",
+            counters.samples > 0 && counters.resync_bytes == 0 && counters.incomplete_cycles == 0,
+            format!(
                 "{} samples, {} bytes skipped, {} incomplete cycles",
                 counters.samples, counters.resync_bytes, counters.incomplete_cycles
             ),
-            time_s: 0.0,
-        },
-        CheckResult {
-            name: "sensor_counter_gapless",
-            node: "sensor",
-            passed: counters.samples > 0 && counters.counter_gaps == 0,
-            detail: format!("{} counter values missing", counters.counter_gaps),
-            time_s: 0.0,
-        },
-        CheckResult {
-            name: "sensor_values_in_range",
-            node: "sensor",
-            passed: bad.is_none() && counters.samples > 0,
-            detail: bad.map_or_else(
+        ),
+        (
+            "sensor_counter_gapless",
+            counters.samples > 0 && counters.counter_gaps == 0,
+            format!("{} counter values missing", counters.counter_gaps),
+        ),
+        (
+            "sensor_values_in_range",
+            bad.is_none() && counters.samples > 0,
+            bad.map_or_else(
                 || "every value a distance or a known error code".to_owned(),
                 |s| format!("unknown error code {}", s.value.raw()),
             ),
-            time_s: 0.0,
-        },
+        ),
     ]
 }
 
-/// The pass/fail table.
+/// The pass/fail table, then one line per failed check on what to look at on the bench.
 #[must_use]
 pub fn table(results: &[CheckResult]) -> String {
     let mut text = format!("{:<6} {:<28} {:<6} detail\n", "node", "check", "result");
     for r in results {
+        let result = match r.outcome {
+            Outcome::Passed => "PASS",
+            Outcome::Failed => "FAIL",
+            Outcome::Skipped => "SKIP",
+        };
         let _ = writeln!(
             text,
             "{:<6} {:<28} {:<6} {}",
-            r.node,
-            r.name,
-            if r.passed { "PASS" } else { "FAIL" },
-            r.detail
+            r.node, r.name, result, r.detail
         );
     }
-    let failed = results.iter().filter(|r| !r.passed).count();
+    let count = |outcome| results.iter().filter(|r| r.outcome == outcome).count();
     let _ = write!(
         text,
-        "{} checks, {} passed, {failed} failed",
+        "{} checks, {} passed, {} failed, {} skipped",
         results.len(),
-        results.len() - failed
+        count(Outcome::Passed),
+        count(Outcome::Failed),
+        count(Outcome::Skipped)
     );
+    for r in results.iter().filter(|r| r.failed()) {
+        if let Some(check) = spec(r.name) {
+            let _ = write!(
+                text,
+                "\non the bench, {}: look at {}",
+                r.name, check.bench_hint
+            );
+        }
+    }
     text
 }
 
 /// The results as JUnit XML (one test suite, one test case per check).
 #[must_use]
 pub fn junit_xml(results: &[CheckResult]) -> String {
-    let failures = results.iter().filter(|r| !r.passed).count();
+    let failures = results.iter().filter(|r| r.failed()).count();
+    let skipped = results
+        .iter()
+        .filter(|r| r.outcome == Outcome::Skipped)
+        .count();
     let total: f64 = results.iter().map(|r| r.time_s).sum();
     let mut xml = format!(
-        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites>\n  <testsuite name=\"scanhil-conformance\" tests=\"{}\" failures=\"{failures}\" errors=\"0\" time=\"{total:.6}\">\n",
+        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<testsuites>\n  <testsuite name=\"scanhil-conformance\" tests=\"{}\" failures=\"{failures}\" errors=\"0\" skipped=\"{skipped}\" time=\"{total:.6}\">\n",
         results.len()
     );
     for r in results {
@@ -597,19 +720,12 @@ pub fn junit_xml(results: &[CheckResult]) -> String {
             "    <testcase classname=\"{}\" name=\"{}\" time=\"{:.6}\"",
             r.node, r.name, r.time_s
         );
-        if r.passed {
-            let _ = writeln!(
-                xml,
-                "><system-out>{}</system-out></testcase>",
-                escape(&r.detail)
-            );
-        } else {
-            let _ = writeln!(
-                xml,
-                "><failure message=\"{}\"/></testcase>",
-                escape(&r.detail)
-            );
-        }
+        let detail = escape(&r.detail);
+        let _ = match r.outcome {
+            Outcome::Passed => writeln!(xml, "><system-out>{detail}</system-out></testcase>"),
+            Outcome::Failed => writeln!(xml, "><failure message=\"{detail}\"/></testcase>"),
+            Outcome::Skipped => writeln!(xml, "><skipped message=\"{detail}\"/></testcase>"),
+        };
     }
     xml + "  </testsuite>\n</testsuites>\n"
 }

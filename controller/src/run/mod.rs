@@ -33,10 +33,12 @@
 //! - [`progress`]: the progress bar (terminal only).
 //! - [`power_guard`], [`power_backoff`]: the coil power check before a run (shrink, refuse)
 //!   and the back-off when the node's power limit acts.
-//! - [`conformance`]: checks of a mirror node and a sensor against the loop protocol.
+//! - [`conformance`]: checks of a mirror node and a sensor against the loop protocol;
+//!   [`check_selection`]: which of them run (`--check`, `--skip`, `--destructive`).
 //! - [`plant_link`]: [`crate::link::PlantLink`] over a real mirror link, for `scanhil identify`.
 
 pub mod bus_load;
+pub mod check_selection;
 pub mod chunked;
 pub mod conformance;
 pub mod controller_timing;

@@ -26,7 +26,7 @@ pub enum NodeOutput {
 pub const LATE_COMMAND_WINDOW: u16 = 64;
 
 /// Counters the node reports at the end of a run.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct NodeCounters {
     /// Periods stepped.
     pub periods: u64,
@@ -51,6 +51,9 @@ pub struct NodeCounters {
     pub malformed_frames: u64,
     /// Fault frames sent.
     pub faults: u64,
+    /// The largest coil current any received command asked for (either coil, by magnitude;
+    /// applied or not), A: what a bench's amplifiers would have been told to drive.
+    pub largest_command_a: f64,
 }
 
 /// The mirror node around an emulated plant.
@@ -156,6 +159,11 @@ impl MirrorNode {
     /// command just behind the newest one (by its counter, mod 2^16; up to
     /// [`LATE_COMMAND_WINDOW`]) is counted, not applied.
     pub fn on_command(&mut self, seq: u16, currents_a: ActuatorPair) {
+        self.counters.largest_command_a = self
+            .counters
+            .largest_command_a
+            .max(currents_a.a.abs())
+            .max(currents_a.b.abs());
         if let Some(last) = self.last_command_seq {
             match seq.wrapping_sub(last) {
                 0 => self.counters.repeated_commands += 1,
@@ -272,4 +280,32 @@ fn saturate_i32(value: f64) -> i32 {
     value
         .round()
         .clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn node() -> MirrorNode {
+        let scene = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../fixtures/scenes/protocol-only.json"
+        );
+        let (_, plant) = super::super::load_plant(std::path::Path::new(scene), None).unwrap();
+        MirrorNode::new(plant)
+    }
+
+    #[test]
+    fn the_largest_command_received_is_kept_late_ones_included() {
+        let mut node = node();
+        assert_eq!(node.counters().largest_command_a, 0.0);
+        node.on_command(10, ActuatorPair { a: 0.3, b: -1.25 });
+        node.on_command(11, ActuatorPair { a: 0.5, b: 0.0 });
+        assert_eq!(node.counters().largest_command_a, 1.25);
+        // A command behind the newest is not applied, but the node did receive it.
+        node.on_command(9, ActuatorPair { a: -8.0, b: 0.0 });
+        assert_eq!(node.counters().late_commands, 1);
+        assert_eq!(node.held_command_a(), ActuatorPair { a: 0.5, b: 0.0 });
+        assert_eq!(node.counters().largest_command_a, 8.0);
+    }
 }
