@@ -5,7 +5,7 @@
 use std::time::Duration;
 
 use scanhil_protocol::can::CanFrame;
-use scanhil_protocol::link::{CanLink, LinkError, VirtualClock};
+use scanhil_protocol::link::{Arrival, CanLink, LinkError, VirtualClock};
 use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
 pub use super::host_inbox::{HostInbox, MirrorLinkCounters, NodeEvent};
@@ -225,6 +225,13 @@ impl MirrorLink {
     /// The CAN link itself, for conformance checks that go below the loop's messages.
     pub fn can_link_mut(&mut self) -> &mut CanLink {
         &mut self.port
+    }
+
+    /// When the frame received last arrived: read, and on the bus as the kernel (SocketCAN)
+    /// or the adapter (SLCAN with timestamps) stamped it.
+    #[must_use]
+    pub fn last_arrival(&self) -> Option<Arrival> {
+        self.port.last_arrival()
     }
 
     /// The node events so far (see [`NodeEvent`]: faults and changes of state).
@@ -452,12 +459,17 @@ impl MirrorLink {
             .map(|period| (period, angles)))
     }
 
-    /// Files a received frame at loop time `t_s` (see [`HostInbox::classify`]).
+    /// Files a received frame at loop time `t_s` (see [`HostInbox::classify`]), with its
+    /// arrival on the bus as the link knows it.
     fn classify(
         &mut self,
         frame: &CanFrame,
         t_s: f64,
     ) -> Result<Option<(u16, SensingPair)>, LoopError> {
-        self.inbox.classify(frame, t_s, tokio::time::Instant::now())
+        let arrived = self
+            .port
+            .last_arrival()
+            .map_or_else(tokio::time::Instant::now, |arrival| arrival.on_bus_at);
+        self.inbox.classify(frame, t_s, arrived)
     }
 }

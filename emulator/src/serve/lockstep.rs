@@ -168,7 +168,7 @@ pub async fn run(
 /// what the controller has not read yet.
 async fn end_of_run(ready: &CanFrame, links: &mut ServeLinks) -> anyhow::Result<LoopReport> {
     links.fsm.send(ready).await?;
-    if links.fsm.slcan_bitrate().is_some() {
+    if links.fsm.is_slcan() {
         linger(links).await?;
     }
     Ok(LoopReport {
