@@ -14,6 +14,16 @@ use scanhil_protocol::link::{
 use scanhil_protocol::slcan::SlcanMessage;
 use scanhil_protocol::slcan::bus_status::BusState;
 
+/// How long a receive may take before the test fails (rather than hangs).
+const RECV_LIMIT: Duration = Duration::from_secs(5);
+
+/// The link's next frame (or error), failing the test after [`RECV_LIMIT`].
+async fn recv(link: &mut CanLink) -> Result<CanFrame, LinkError> {
+    tokio::time::timeout(RECV_LIMIT, link.recv())
+        .await
+        .unwrap_or_else(|_| panic!("{}: nothing received within {RECV_LIMIT:?}", link.name()))
+}
+
 fn std_frame(id: u16, data: &[u8]) -> CanFrame {
     CanFrame::new(CanId::standard(id).unwrap(), data).unwrap()
 }
@@ -44,11 +54,11 @@ async fn session(host: &mut CanLink, device: &mut CanLink) -> Option<String> {
     let out = [std_frame(0x100, &[1, 2, 3]), ext_frame(0x1ABC_DEF0, &[4])];
     for frame in out {
         host.send(&frame).await.unwrap();
-        assert_eq!(device.recv().await.unwrap(), frame);
+        assert_eq!(recv(device).await.unwrap(), frame);
     }
     for frame in out.iter().rev() {
         device.send(frame).await.unwrap();
-        assert_eq!(host.recv().await.unwrap(), *frame);
+        assert_eq!(recv(host).await.unwrap(), *frame);
     }
     let version = tokio::select! {
         version = host.adapter_version() => version.unwrap(),
@@ -138,9 +148,9 @@ async fn an_adapters_bus_off_line_ends_the_receive_after_the_frames_before_it() 
     raw.write_all(b"sa000000\re1a\rsp128131\rt1001AA\rsb000256\rt1001BB\r")
         .await
         .unwrap();
-    assert_eq!(host.recv().await.unwrap(), std_frame(0x100, &[0xAA]));
-    assert_eq!(host.recv().await.unwrap(), std_frame(0x100, &[0xBB]));
-    let error = host.recv().await.unwrap_err();
+    assert_eq!(recv(&mut host).await.unwrap(), std_frame(0x100, &[0xAA]));
+    assert_eq!(recv(&mut host).await.unwrap(), std_frame(0x100, &[0xBB]));
+    let error = recv(&mut host).await.unwrap_err();
     assert!(matches!(error, LinkError::BusOff { .. }), "{error}");
     assert!(
         error.to_string().contains("the adapter reports bus-off"),
@@ -161,11 +171,11 @@ async fn flags_free_text_and_stamped_frames_are_taken_not_counted_malformed() {
     raw.write_all(b"F24\rCANable debug: hello\rt1001AA0010\rt1001BB0012\rT1ABCDEF00EA5F\r")
         .await
         .unwrap();
-    assert_eq!(host.recv().await.unwrap(), std_frame(0x100, &[0xAA]));
+    assert_eq!(recv(&mut host).await.unwrap(), std_frame(0x100, &[0xAA]));
     let first = host.last_arrival().unwrap();
-    assert_eq!(host.recv().await.unwrap(), std_frame(0x100, &[0xBB]));
+    assert_eq!(recv(&mut host).await.unwrap(), std_frame(0x100, &[0xBB]));
     let second = host.last_arrival().unwrap();
-    assert_eq!(host.recv().await.unwrap(), ext_frame(0x1ABC_DEF0, &[]));
+    assert_eq!(recv(&mut host).await.unwrap(), ext_frame(0x1ABC_DEF0, &[]));
     for arrival in [first, second] {
         assert_eq!(arrival.source, ArrivalSource::Adapter);
         assert!(arrival.on_bus_at <= arrival.read_at);
@@ -199,7 +209,7 @@ async fn raw_lines_to_a_silent_adapter_are_not_waited_for() {
     );
     // The lines did go out: the device counts them malformed, and answers none.
     host.send(&std_frame(0x100, &[9])).await.unwrap();
-    assert_eq!(device.recv().await.unwrap(), std_frame(0x100, &[9]));
+    assert_eq!(recv(&mut device).await.unwrap(), std_frame(0x100, &[9]));
     assert_eq!(device.stats().slcan.malformed_lines, 3);
     // An adapter that answers is waited for, and its BEL returned.
     let (mut host, mut device) = host_and_adapter(EmulatedAdapter::Lawicel, "").await;
