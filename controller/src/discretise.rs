@@ -209,6 +209,77 @@ fn zero_order_hold(section: &ContinuousSection, t: f64) -> Section {
     }
 }
 
+/// The zero-order-hold sampling of a strictly proper `section` whose held input steps arrive
+/// `delay_s` late (`0 <= delay_s < period_s`): over `[kT, kT + d)` the input is still `u[k-1]`,
+/// over `[kT + d, (k+1)T)` it is `u[k]`. Returns the section `S` with the sampled map
+/// `y[k] = (z^-1 S) u[k]` (the modified z-transform); for `delay_s = 0` that is the plain
+/// zero-order hold.
+///
+/// # Panics
+/// If `section` is not strictly proper or the delay is outside `[0, period_s)` (caller bugs).
+#[must_use]
+pub fn zero_order_hold_delayed(
+    section: &ContinuousSection,
+    period_s: f64,
+    delay_s: f64,
+) -> Section {
+    let n = section.order();
+    assert!(
+        (1..=2).contains(&n) && section.num.degree() < n,
+        "delayed zero-order hold of a section that is not strictly proper"
+    );
+    assert!(
+        (0.0..period_s).contains(&delay_s),
+        "delay {delay_s} s outside [0, {period_s}) s"
+    );
+    let lead = if n == 2 {
+        section.den.s2
+    } else {
+        section.den.s1
+    };
+    let (c0, c1) = (section.den.s0 / lead, section.den.s1 / lead);
+    let (m1, m0) = (section.num.s1 / lead, section.num.s0 / lead);
+    if n == 1 {
+        // x' = -c0 x + u, y = m0 x.
+        let held = |tau: f64| {
+            if c0 == 0.0 {
+                tau
+            } else {
+                -(-c0 * tau).exp_m1() / c0
+            }
+        };
+        let late = (-c0 * (period_s - delay_s)).exp();
+        return Section {
+            b: [
+                m0 * held(period_s - delay_s),
+                m0 * late * held(delay_s),
+                0.0,
+            ],
+            a: [-(-c0 * period_s).exp(), 0.0],
+        };
+    }
+    // Controllable canonical form: x' = [0 1; -c0 -c1] x + [0; 1] u, y = [m0 m1] x.
+    let hold = |tau: f64| {
+        let e = (Matrix3::new(0.0, 1.0, 0.0, -c0, -c1, 1.0, 0.0, 0.0, 0.0) * tau).exp();
+        (
+            Matrix2::new(e[(0, 0)], e[(0, 1)], e[(1, 0)], e[(1, 1)]),
+            nalgebra::Vector2::new(e[(0, 2)], e[(1, 2)]),
+        )
+    };
+    let (phi, _) = hold(period_s);
+    let (late, gamma_late) = hold(period_s - delay_s);
+    let gamma_early = late * hold(delay_s).1;
+    let c = nalgebra::RowVector2::new(m0, m1);
+    let adj_const = Matrix2::new(-phi[(1, 1)], phi[(0, 1)], phi[(1, 0)], -phi[(0, 0)]);
+    // C adj(zI - Phi) g = z (C g) + C adj_const g, over det(zI - Phi) = z^2 - tr z + det.
+    let (cg1, k1) = ((c * gamma_late)[0], (c * adj_const * gamma_late)[0]);
+    let (cg0, k0) = ((c * gamma_early)[0], (c * adj_const * gamma_early)[0]);
+    Section {
+        b: [cg1, k1 + cg0, k0],
+        a: [-phi.trace(), phi.determinant()],
+    }
+}
+
 /// Monic polynomial in z (lowest power first) with the given roots (conjugate pairs whole).
 fn monic_from_roots(roots: &[Complex<f64>]) -> Poly {
     let mut p = vec![1.0];
@@ -258,6 +329,7 @@ fn matched_pole_zero(section: &ContinuousSection, t: f64) -> Section {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sos::SectionState;
 
     const T: f64 = 50e-6;
 
@@ -305,6 +377,72 @@ mod tests {
             let y = d.step(&mut state, 1.0);
             let exact = (1.0 - (-a * T * k as f64).exp()) / a;
             assert!((y - exact).abs() < 1e-15, "k={k}: {y} vs {exact}");
+        }
+    }
+
+    #[test]
+    fn delayed_hold_without_delay_is_the_plain_hold() {
+        for section in [
+            resonant(),
+            ContinuousSection {
+                num: Quadratic::constant(3.0),
+                den: Quadratic::first_order(4.07e4),
+            },
+        ] {
+            let plain = discretise(&section, &Method::ZeroOrderHold, T);
+            let delayed = zero_order_hold_delayed(&section, T, 0.0);
+            // z^-1 S against the plain section (whose b0 is zero: strictly proper).
+            assert_eq!(plain.b[0], 0.0);
+            for (got, want) in [delayed.b[0], delayed.b[1], delayed.b[2]]
+                .iter()
+                .zip([plain.b[1], plain.b[2], 0.0])
+            {
+                assert!(
+                    (got - want).abs() < 1e-15 * plain.b[1].abs().max(1.0),
+                    "{delayed:?} {plain:?}"
+                );
+            }
+            assert_eq!(delayed.a, plain.a);
+        }
+    }
+
+    #[test]
+    fn delayed_hold_samples_a_finely_held_input() {
+        // A delay of 3 of 8 sub-periods is exactly a plain hold at T/8 fed the input a little
+        // late: sample every eighth output of that.
+        let (sub, late) = (8usize, 3usize);
+        for section in [
+            resonant(),
+            ContinuousSection {
+                num: Quadratic::constant(2.0e3),
+                den: Quadratic::first_order(1.0e3),
+            },
+        ] {
+            let fine = discretise(&section, &Method::ZeroOrderHold, T / sub as f64);
+            let coarse = zero_order_hold_delayed(&section, T, late as f64 * T / sub as f64);
+            let input: Vec<f64> = (0..40).map(|k| ((k * 7) % 5) as f64 - 2.0).collect();
+            let (mut fine_state, mut coarse_state) =
+                (SectionState::default(), SectionState::default());
+            let (mut previous, mut fine_out) = (0.0, Vec::new());
+            for &u in &input {
+                for j in 0..sub {
+                    let held = if j < late { previous } else { u };
+                    let y = fine.step(&mut fine_state, held);
+                    if j == 0 {
+                        fine_out.push(y);
+                    }
+                }
+                previous = u;
+            }
+            // y[k] = (z^-1 S) u: the coarse section's output one period later.
+            let mut coarse_out = vec![0.0];
+            coarse_out.extend(input.iter().map(|&u| coarse.step(&mut coarse_state, u)));
+            for (k, (f, c)) in fine_out.iter().zip(&coarse_out).enumerate() {
+                assert!(
+                    (f - c).abs() < 1e-9 * (1.0 + f.abs()),
+                    "k = {k}: {f} vs {c}"
+                );
+            }
         }
     }
 

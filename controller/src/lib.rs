@@ -15,7 +15,10 @@
 //! - [`dual_tone`]: eq. 5 with Table I, optionally with the tones moved onto the drive
 //!   frequencies.
 //! - [`plant_model`]: eq. 4, ZOH-discretised, with the one-period command delay.
+//! - [`plant_source`]: a design's plant from a file: a scene's mirror, a controller's plant.
 //! - [`loop_analysis`]: the nominal closed loop: poles, margins, bandwidth, T.
+//! - [`design`]: controllers designed for a plant and a rate: the paper's alpha-tuned PID and
+//!   a dual-tone rule (resonant tones on the equalised plant), checked against stated margins.
 //! - [`steady_state`]: the steady-state tracking error the nominal loop predicts for a
 //!   periodic reference.
 //! - [`rig`]: the rig description: control rate, scanner geometry and calibration, sensor.
@@ -35,6 +38,7 @@
 
 pub mod accuracy;
 pub mod continuous;
+pub mod design;
 pub mod discretise;
 pub mod dual_tone;
 pub mod identify;
@@ -43,6 +47,7 @@ pub mod link;
 pub mod loop_analysis;
 pub mod pid;
 pub mod plant_model;
+pub mod plant_source;
 pub mod power_budget;
 pub mod rig;
 pub mod run;

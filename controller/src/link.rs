@@ -9,7 +9,7 @@ use scanhil_protocol::plant_units::{
 };
 
 use crate::plant_model::PlantModel;
-use crate::sos::{Section, SectionState};
+use crate::sos::Cascade;
 
 /// Why an exchange with the plant failed.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -17,6 +17,19 @@ use crate::sos::{Section, SectionState};
 pub struct LinkError {
     /// What failed, and where.
     pub message: String,
+}
+
+/// How a run left the mirror's coils: the zero command the host sent at its end (after the
+/// last period, or on the way out of an early stop), and whether the node acknowledged it
+/// (its Status(ready) answering the controller's, which it sends after it took the zero
+/// command: the zero is in force). An early stop commands zero best effort and awaits no
+/// answer: the link may be gone, and the node's own watchdog zeroes the coils then.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct CoilsAtEnd {
+    /// The host sent CoilCommand(0) at the end.
+    pub zero_commanded: bool,
+    /// The node answered the end of the run after taking it.
+    pub acknowledged: bool,
 }
 
 /// One control period with a plant.
@@ -28,14 +41,19 @@ pub trait PlantLink {
 
     /// The control period, s.
     fn period_s(&self) -> f64;
+
+    /// Ends the session with the coils commanded to zero, and says how that went (`None`: a
+    /// plant with no node to leave driven, such as the nominal model in process).
+    fn end(&mut self) -> Option<CoilsAtEnd> {
+        None
+    }
 }
 
 /// The nominal model as a plant: `ZOH(eq. 4)` per sensing axis with the command acting one
-/// period late, and optional white Gaussian angle noise (seeded).
+/// period late (plus the model's extra delay), and optional white Gaussian angle noise (seeded).
 #[derive(Debug, Clone)]
 pub struct NominalPlantLink {
-    zoh: Section,
-    states: [SectionState; 2],
+    axes: [Cascade; 2],
     period_s: f64,
     noise_rms_rad: f64,
     rng: ChaCha8Rng,
@@ -46,8 +64,7 @@ impl NominalPlantLink {
     #[must_use]
     pub fn new(model: &PlantModel, period_s: f64, noise_rms_rad: f64, seed: u64) -> Self {
         Self {
-            zoh: model.zoh(period_s),
-            states: [SectionState::default(); 2],
+            axes: [model.sampled(period_s), model.sampled(period_s)],
             period_s,
             noise_rms_rad,
             rng: ChaCha8Rng::seed_from_u64(seed),
@@ -70,12 +87,8 @@ impl PlantLink for NominalPlantLink {
             });
         }
         let input = sensing_from_actuator(coil_currents_a);
-        let alpha = self
-            .zoh
-            .step(&mut self.states[0], input.alpha / AMPS_PER_INPUT_UNIT);
-        let beta = self
-            .zoh
-            .step(&mut self.states[1], input.beta / AMPS_PER_INPUT_UNIT);
+        let alpha = self.axes[0].step(input.alpha / AMPS_PER_INPUT_UNIT);
+        let beta = self.axes[1].step(input.beta / AMPS_PER_INPUT_UNIT);
         let mut out = SensingPair {
             alpha: alpha * RAD_PER_OUTPUT_UNIT,
             beta: beta * RAD_PER_OUTPUT_UNIT,

@@ -49,6 +49,16 @@ impl std::fmt::Display for ZPoint {
     }
 }
 
+/// Poles as one line of text, for refusals.
+#[must_use]
+pub fn format_poles(poles: &[ZPoint]) -> String {
+    poles
+        .iter()
+        .map(ToString::to_string)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// A gain crossover (|L| = 1) and its phase margin.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct GainCrossover {
@@ -102,6 +112,10 @@ pub struct LoopReport {
     pub peak_db: f64,
     /// Where max |T| is, Hz.
     pub peak_hz: f64,
+    /// max |S| = 1 / (the smallest distance of L from -1), dB.
+    pub sensitivity_peak_db: f64,
+    /// Where max |S| is, Hz.
+    pub sensitivity_peak_hz: f64,
     /// T at the frequencies asked for.
     pub at: Vec<FrequencyValue>,
     /// The closed-loop poles.
@@ -224,9 +238,13 @@ impl NominalLoop {
         let mut phase_crossovers = Vec::new();
         let mut bandwidth = None;
         let (mut peak_db, mut peak_hz) = (f64::NEG_INFINITY, 0.0);
-        for w in grid.windows(2) {
-            let (f0, f1) = (w[0], w[1]);
-            if (log_mag(f0) > 0.0) != (log_mag(f1) > 0.0) {
+        let (mut sensitivity_peak, mut sensitivity_peak_hz) = (0.0f64, 0.0);
+        // L once per grid point; each window compares its two ends.
+        let values: Vec<(f64, Complex<f64>)> =
+            grid.iter().map(|&f| (f, self.loop_gain(f))).collect();
+        for w in values.windows(2) {
+            let ((f0, l0), (f1, l1)) = (w[0], w[1]);
+            if (l0.norm().ln() > 0.0) != (l1.norm().ln() > 0.0) {
                 let f = Self::bisect(log_mag, f0, f1);
                 let arg = self.loop_gain(f).arg().to_degrees();
                 let pm = (180.0 + arg + 180.0).rem_euclid(360.0) - 180.0;
@@ -235,7 +253,7 @@ impl NominalLoop {
                     phase_margin_deg: pm,
                 });
             }
-            if (imag(f0) > 0.0) != (imag(f1) > 0.0) {
+            if (l0.im > 0.0) != (l1.im > 0.0) {
                 let f = Self::bisect(imag, f0, f1);
                 let l = self.loop_gain(f);
                 if l.re < 0.0 {
@@ -245,12 +263,17 @@ impl NominalLoop {
                     });
                 }
             }
-            if t_db(f0) > 0.0 && t_db(f1) <= 0.0 {
+            let (t0, t1) = (l0 / (l0 + 1.0), l1 / (l1 + 1.0));
+            let (t0_db, t1_db) = (20.0 * t0.norm().log10(), 20.0 * t1.norm().log10());
+            if t0_db + 3.0103 > 0.0 && t1_db + 3.0103 <= 0.0 {
                 bandwidth = Some(Self::bisect(t_db, f0, f1));
             }
-            let db = 20.0 * self.complementary(f0).norm().log10();
-            if db > peak_db {
-                (peak_db, peak_hz) = (db, f0);
+            if t0_db > peak_db {
+                (peak_db, peak_hz) = (t0_db, f0);
+            }
+            let s0 = (l0 + 1.0).inv().norm();
+            if s0 > sensitivity_peak {
+                (sensitivity_peak, sensitivity_peak_hz) = (s0, f0);
             }
         }
         let at = at_hz
@@ -282,6 +305,8 @@ impl NominalLoop {
             bandwidth_3db_hz: bandwidth,
             peak_db,
             peak_hz,
+            sensitivity_peak_db: 20.0 * sensitivity_peak.log10(),
+            sensitivity_peak_hz,
             at,
             closed_loop_poles: poles
                 .iter()

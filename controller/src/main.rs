@@ -31,6 +31,8 @@ enum Command {
     Analyze(commands::analyze::Args),
     /// Measure a frequency response (open-loop plant or closed loop) with a stepped sine.
     Identify(commands::identify::Args),
+    /// Design a PID or dual-tone controller for a plant at a rig's (or its bus's) rate.
+    Design(commands::design::Args),
     /// Print a trajectory's frame rate and line spacing (JSON).
     Trajectory(commands::trajectory::Args),
 }
@@ -47,6 +49,7 @@ fn main() -> ExitCode {
         Command::Compare(args) => commands::compare::run(args),
         Command::Analyze(args) => commands::analyze::run(args),
         Command::Identify(args) => commands::identify::run(args),
+        Command::Design(args) => commands::design::run(args),
         Command::Trajectory(args) => commands::trajectory::run(args),
     };
     match result {

@@ -6,7 +6,9 @@
 //!   receiver) and the calibration of the angle sensor and the distance;
 //! - `sensor`: the ILD 2300's measuring rate and range, or `null` for a mirror-only rig;
 //! - `mirror` (optional): the coils' resistance, the power limit and the cross-talk, from which
-//!   the host estimates a trajectory's coil power before a run ([`crate::power_budget`]).
+//!   the host estimates a trajectory's coil power before a run ([`crate::power_budget`]);
+//! - `bus` (optional): the CAN bus the mirror node is on (bit rate, transit), from which
+//!   `scanhil design` takes the highest loop rate the bus carries and the delay it adds.
 //!
 //! A scan of real devices needs only this file (and a scenario naming it); an emulator's scene
 //! file is for the emulator alone. When the host starts the emulator it checks the emulated
@@ -40,6 +42,39 @@ pub struct Rig {
     pub sensor: Option<RigSensor>,
     /// The mirror's coils and power limit, if known (without them no power estimate).
     pub mirror: Option<RigMirror>,
+    /// The mirror node's CAN bus, if stated.
+    pub bus: Option<RigBus>,
+}
+
+/// The CAN bus between the host and the mirror node.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RigBus {
+    /// Nominal bit rate, bit/s (classical CAN: the loop's frames at their worst-case length).
+    pub bitrate_bps: f64,
+    /// Delay a command arrives after the one period of the loop's timing convention (the
+    /// frames' time on the bus, the adapters' latency), s; 0 when the node applies commands on
+    /// its period boundary.
+    #[serde(default)]
+    pub transit_s: f64,
+}
+
+impl RigBus {
+    fn check(&self) -> Result<(), (&'static str, String)> {
+        if !(self.bitrate_bps.is_finite() && self.bitrate_bps > 0.0) {
+            return Err((
+                "bus.bitrate_bps",
+                format!("{} bit/s must be positive and finite", self.bitrate_bps),
+            ));
+        }
+        if !(self.transit_s.is_finite() && (0.0..1.0).contains(&self.transit_s)) {
+            return Err((
+                "bus.transit_s",
+                format!("{} s must be in [0, 1)", self.transit_s),
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// The mirror's coils as the host's power estimate needs them (the dynamics are eq. 4, the
@@ -255,6 +290,8 @@ struct RigFile {
     sensor: Option<RigSensor>,
     #[serde(default)]
     mirror: Option<RigMirror>,
+    #[serde(default)]
+    bus: Option<RigBus>,
 }
 
 impl Rig {
@@ -295,6 +332,9 @@ impl Rig {
         if let Some(mirror) = &file.mirror {
             mirror.check().map_err(invalid)?;
         }
+        if let Some(bus) = &file.bus {
+            bus.check().map_err(invalid)?;
+        }
         Ok(Rig {
             path: origin.to_owned(),
             name: file.name,
@@ -303,6 +343,7 @@ impl Rig {
             scanner: file.scanner,
             sensor: file.sensor,
             mirror: file.mirror,
+            bus: file.bus,
         })
     }
 
@@ -322,6 +363,7 @@ impl Rig {
             "scanner": self.scanner,
             "sensor": self.sensor,
             "mirror": self.mirror,
+            "bus": self.bus,
         })
     }
 }
@@ -420,6 +462,16 @@ mod tests {
                     "mirror": {"coil_resistance_ohm": 2.0, "power_limit_w": 30,
                                "cross_talk": {"alpha_from_beta": 1.5}}}"#,
                 "mirror.cross_talk.alpha_from_beta",
+            ),
+            (
+                r#"{"name": "r", "control_rate_hz": 1000, "sensor": null,
+                    "bus": {"bitrate_bps": 0}}"#,
+                "bus.bitrate_bps",
+            ),
+            (
+                r#"{"name": "r", "control_rate_hz": 1000, "sensor": null,
+                    "bus": {"bitrate_bps": 1e6, "transit_s": -1e-4}}"#,
+                "bus.transit_s",
             ),
         ] {
             let error = parse(text).unwrap_err().to_string();

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use crate::continuous::FactoredTf;
 use crate::discretise::{Method, discretise};
 use crate::dual_tone::DualToneParams;
-use crate::loop_analysis::{NominalLoop, ZPoint};
+use crate::loop_analysis::{NominalLoop, ZPoint, format_poles};
 use crate::pid::{Pid, PidParams};
 use crate::plant_model::PlantModel;
 use crate::scan_controller::{AxisController, AxisLaw, ScanController};
@@ -90,14 +90,6 @@ pub enum SettingsError {
         /// The offending poles (|z| >= 1).
         poles: Vec<ZPoint>,
     },
-}
-
-fn format_poles(poles: &[ZPoint]) -> String {
-    poles
-        .iter()
-        .map(ToString::to_string)
-        .collect::<Vec<_>>()
-        .join(", ")
 }
 
 impl ControllerSettings {

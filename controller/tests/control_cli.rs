@@ -1,5 +1,5 @@
-//! `scanhil analyze`, `identify` and `trajectory` as a user runs them, and numbers on the
-//! command line.
+//! `scanhil analyze`, `identify`, `design` and `trajectory` as a user runs them, and numbers on
+//! the command line.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -228,4 +228,64 @@ fn analyze_refuses_a_comparison_too_long_to_run() {
         assert_eq!(out.status.code(), Some(1), "{duration}: {stderr}");
         assert!(stderr.contains("--compare-duration-s"), "{stderr}");
     }
+}
+
+#[test]
+fn design_writes_a_controller_that_loads_or_refuses_with_exit_1() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("designed.json");
+    let rigs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/rigs");
+    let design = |rig: &str, extra: &[&str]| {
+        let rig = rigs.join(rig);
+        let mut args = vec!["design", "--rig", rig.to_str().unwrap(), "--rate-hz", "bus"];
+        args.extend(extra);
+        scanhil(&args)
+    };
+    let run = design(
+        "paper-bench-1mbit.json",
+        &[
+            "--kind",
+            "dual-tone",
+            "--json",
+            "--out",
+            out.to_str().unwrap(),
+        ],
+    );
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    assert_eq!(json["design"]["rate_hz"], 2736.0);
+    assert!(json["reach"]["dual_tone"]["drive_hz"].is_array());
+    let written = scanhil_controller::settings::ControllerSettings::load(&out).unwrap();
+    written
+        .build()
+        .expect("the written controller loads and is stable");
+    assert_eq!(written.control_rate_hz, 2736.0);
+
+    let never = dir.path().join("never.json");
+    let refused = design(
+        "paper-bench-1mbit.json",
+        &[
+            "--kind",
+            "pid",
+            "--crossover-hz",
+            "211",
+            "--out",
+            never.to_str().unwrap(),
+        ],
+    );
+    assert_eq!(refused.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        stderr.contains("below the 45 deg asked") && stderr.contains("poles"),
+        "{stderr}"
+    );
+    assert!(!never.exists());
+
+    let no_bus = design("paper-bench.json", &["--kind", "dual-tone"]);
+    assert_eq!(no_bus.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&no_bus.stderr).contains("states no `bus`"));
 }

@@ -188,6 +188,41 @@ fn the_dual_tone_with_tones_on_the_drive_leaves_almost_no_error_and_table_i_some
 }
 
 #[test]
+fn the_dual_tone_designed_for_the_bus_rate_tracks_as_predicted() {
+    // `scanhil design --rate-hz bus` on the 1 Mbit/s rig: 2736 Hz, the paper's full-range
+    // Lissajous (the coils stay linear: 6 A limit). Its slowest pole settles in 1.5 s.
+    let designed = settings("dual-tone-2736hz-designed.json");
+    let trajectory = Trajectory::Lissajous {
+        alpha_hz: 52.0,
+        beta_hz: 27.0,
+        alpha_amplitude_rad: 1.5f64.to_radians(),
+        beta_amplitude_rad: 1.5f64.to_radians(),
+        relative_phase_rad: 0.0,
+    };
+    let predicted = predict(
+        &designed.nominal_loop(&designed.axis_controller().unwrap()),
+        &trajectory,
+    );
+    let measured = measured(&designed, &trajectory, 3.0, 1.0);
+    assert_close(
+        measured.alpha_rms_relative,
+        predicted.alpha_rms_relative,
+        0.02,
+        "alpha",
+    );
+    assert_close(
+        measured.beta_rms_relative,
+        predicted.beta_rms_relative,
+        0.02,
+        "beta",
+    );
+    assert!(
+        predicted.alpha_rms_relative.unwrap() < 0.005,
+        "{predicted:?}"
+    );
+}
+
+#[test]
 fn references_without_a_steady_state_have_no_prediction() {
     let settings = settings("pid-series.json");
     let axis = settings.axis_controller().expect("the controller");

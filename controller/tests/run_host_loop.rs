@@ -71,6 +71,18 @@ fn decoded(action: HostAction) -> Vec<(Message, f64)> {
     let HostAction::Send(frames) = action else {
         panic!("expected frames to send, got {action:?}");
     };
+    decode_all(&frames)
+}
+
+/// The frames of a stop: the zero command, the end of the run (never faulted).
+fn decoded_stop(action: HostAction) -> Vec<(Message, f64)> {
+    let HostAction::SendStop(frames) = action else {
+        panic!("expected the stop's frames, got {action:?}");
+    };
+    decode_all(&frames)
+}
+
+fn decode_all(frames: &[scanhil_controller::run::host_loop::StampedFrame]) -> Vec<(Message, f64)> {
     frames
         .iter()
         .map(|f| (Message::decode(&f.frame).unwrap(), f.t_s))
@@ -105,12 +117,17 @@ fn a_run_sends_command_and_step_per_period_counts_what_it_files_and_ends_with_th
         assert_eq!(host.next_action(), awaited);
         assert_eq!(host.on_frame(&reading(k as u16), now()), Heard::Reading(k));
     }
-    let end = decoded(host.next_action());
+    // The end: zero current (the next period's counter), then the controller's Status.
+    let end = decoded_stop(host.next_action());
     assert!(
-        matches!(end[..], [(Message::Status(s), t_s)] if s.node == NodeId::Controller
-            && s.state == NodeState::Ready && t_s == 2.0 * period_s),
+        matches!(end[..], [(Message::CoilCommand(c), t0), (Message::Status(s), t1)]
+            if c.seq == 2 && c.current_a_ua == 0 && c.current_b_ua == 0
+            && s.node == NodeId::Controller && s.state == NodeState::Ready
+            && t0 == 2.0 * period_s && t1 == t0),
         "{end:?}"
     );
+    assert!(host.record().coils_at_end.zero_commanded);
+    assert!(!host.record().coils_at_end.acknowledged);
     assert_eq!(
         host.next_action(),
         HostAction::AwaitNodeReady {
@@ -125,6 +142,10 @@ fn a_run_sends_command_and_step_per_period_counts_what_it_files_and_ends_with_th
     let (record, inbox) = host.finish();
     assert_eq!(record.periods_done, 2);
     assert!(record.stopped_by.is_none());
+    assert!(
+        record.coils_at_end.acknowledged,
+        "the node's Status(ready) after the zero acknowledges it"
+    );
     let counters = inbox.counters();
     assert_eq!(counters.foreign_frames, 2);
     assert_eq!(counters.malformed_frames, 2);
@@ -164,7 +185,7 @@ fn the_nodes_link_timeout_fault_stops_the_run_with_a_zero_command() {
     .encode()
     .unwrap();
     assert_eq!(host.on_frame(&fault, now()), Heard::Stopped);
-    let zero = decoded(host.next_action());
+    let zero = decoded_stop(host.next_action());
     assert!(
         matches!(zero[..], [(Message::CoilCommand(c), t_s)] if c.seq == 1
             && c.current_a_ua == 0 && c.current_b_ua == 0 && t_s == 2.0 * period_s),
@@ -173,6 +194,7 @@ fn the_nodes_link_timeout_fault_stops_the_run_with_a_zero_command() {
     assert_eq!(host.next_action(), HostAction::Done);
     let (record, _) = host.finish();
     assert_eq!(record.periods_done, 1);
+    assert!(record.coils_at_end.zero_commanded && !record.coils_at_end.acknowledged);
     assert!(matches!(
         record.stopped_by,
         Some(LoopError::NodeFault {
@@ -195,7 +217,7 @@ fn silence_stops_a_period_but_ends_the_run_quietly_after_the_last() {
     let mut host = host_loop(&mut controller, &trajectory, 1);
     decoded(host.next_action());
     assert_eq!(host.on_frame(&reading(0), now()), Heard::Reading(0));
-    decoded(host.next_action());
+    decoded_stop(host.next_action());
     host.on_error(timeout(1));
     assert_eq!(host.next_action(), HostAction::Done);
     let (record, _) = host.finish();
@@ -203,11 +225,12 @@ fn silence_stops_a_period_but_ends_the_run_quietly_after_the_last() {
         record.stopped_by.is_none(),
         "a node without the end exchange"
     );
+    assert!(record.coils_at_end.zero_commanded && !record.coils_at_end.acknowledged);
 
     let mut host = host_loop(&mut controller, &trajectory, 1);
     decoded(host.next_action());
     host.on_error(timeout(0));
-    decoded(host.next_action());
+    decoded_stop(host.next_action());
     assert_eq!(host.next_action(), HostAction::Done);
     let (record, _) = host.finish();
     assert_eq!(record.periods_done, 0);

@@ -62,10 +62,11 @@ impl DriveModel {
         }
         if let Some(m) = mirror {
             let coupling = input_from_currents(cross_talk);
-            let am = m.state_matrix();
-            let bm = m.input_column();
-            for (row, slot) in angle_index.iter().enumerate() {
+            for ((row, slot), axis) in angle_index.iter().enumerate().zip(SensingAxis::BOTH) {
                 let Some(i) = *slot else { continue };
+                let dynamics = m.axis(axis);
+                let am = dynamics.state_matrix();
+                let bm = dynamics.input_column();
                 for r in 0..2 {
                     for c in 0..2 {
                         a[(i + r, i + c)] = am[r][c];

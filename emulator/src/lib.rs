@@ -14,7 +14,8 @@
 //!   scene option, a second bounce ([`optics::multipath`]).
 //! - [`sensor`]: the ILD 2300-100 triangulation sensor on its own clock.
 //! - [`sensor_faults`]: the sensor losing its peak (laser off, out of range, occlusion).
-//! - [`mirror`]: eq. 4 per sensing axis.
+//! - [`mirror`]: eq. 4 per sensing axis, its parameters set per axis.
+//! - [`latency`]: an axis's delay beyond one control period, on its measured angle.
 //! - [`amplifier`], [`cross_talk`], [`power`], [`angle_sensor`]: the drive and the angle
 //!   sensor.
 //! - [`drive_model`]: the composed linear dynamics of the active parts.
@@ -27,6 +28,7 @@ pub mod angle_sensor;
 pub mod cross_talk;
 pub mod drive_model;
 pub mod integrator;
+pub mod latency;
 pub mod mirror;
 pub mod optics;
 pub mod plant;

@@ -20,12 +20,13 @@
 
 use serde::Serialize;
 
-use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
+use scanhil_protocol::plant_units::{ActuatorPair, RAD_PER_OUTPUT_UNIT, SensingPair};
 
 use crate::amplifier::AmplifierConfig;
 use crate::angle_sensor::AngleSensor;
 use crate::drive_model::DriveModel;
 use crate::integrator::{StabilityError, Stepper};
+use crate::latency::OutputLatency;
 use crate::mirror::SensingAxis;
 use crate::optics::{Optics, OpticsError};
 use crate::power::{PowerAction, PowerMonitor, coil_resistance_ohm};
@@ -112,7 +113,8 @@ pub struct PlantStep {
     pub period_index: u64,
     /// `(k+1) Ta`: when the angles were sampled, in s.
     pub t_end_s: f64,
-    /// The angle sensor's output, in rad (the true angles when `angle_sensor_noise` is off).
+    /// The angle sensor's output, in rad: the true angles, delayed on an axis whose
+    /// `mirror.delay_s` exceeds one period, with the `angle_sensor_noise` part's imperfections.
     pub measured_angles_rad: SensingPair,
     /// The mechanical angles, in rad.
     pub true_angles_rad: SensingPair,
@@ -232,6 +234,10 @@ pub struct Plant {
     model: DriveModel,
     stepper: Option<Stepper>,
     state: Vec<f64>,
+    /// Each axis's delay beyond one period, on its measured angle (`[alpha, beta]`).
+    latencies: [Option<OutputLatency>; 2],
+    /// The state at the start of the period being stepped (only kept for the latencies).
+    start_state: Vec<f64>,
     fixed_angles_rad: SensingPair,
     amplifier: Option<AmplifierConfig>,
     power: Option<PowerMonitor>,
@@ -262,6 +268,20 @@ impl Plant {
             None
         };
         let init = scene.mirror.initial_angles_rad;
+        let state = model.initial_state([init.alpha, init.beta]);
+        let mut latencies = [None, None];
+        for ((latency, slot), axis) in latencies
+            .iter_mut()
+            .zip(model.angle_index)
+            .zip(SensingAxis::BOTH)
+        {
+            let extra_s = scene.mirror.axis(axis).extra_delay_s(period_s);
+            if let Some(index) = slot
+                && extra_s > period_s * 1e-9
+            {
+                *latency = Some(OutputLatency::new(&model, index, extra_s, period_s, &state));
+            }
+        }
         let resistance_ohm = scene
             .power_limit
             .coil_resistance_ohm
@@ -270,7 +290,9 @@ impl Plant {
             scene_name: scene.name.clone(),
             period_s,
             active_parts: scene.active_parts(),
-            state: model.initial_state([init.alpha, init.beta]),
+            start_state: state.clone(),
+            state,
+            latencies,
             model,
             stepper,
             fixed_angles_rad: init,
@@ -407,10 +429,28 @@ impl Plant {
             faulted = power.faulted();
         }
         let start_rad = self.true_angles_rad();
+        let delayed = self.latencies.iter().any(Option::is_some);
+        if delayed {
+            self.start_state.copy_from_slice(&self.state);
+        }
+        let input = [applied.a, applied.b];
         if let Some(stepper) = &mut self.stepper {
-            stepper.step(&mut self.state, [applied.a, applied.b]);
+            stepper.step(&mut self.state, input);
         }
         let true_angles_rad = self.true_angles_rad();
+        let mut reported_rad = true_angles_rad;
+        if delayed {
+            let [alpha, beta] = &mut self.latencies;
+            for (latency, reported) in [
+                (alpha, &mut reported_rad.alpha),
+                (beta, &mut reported_rad.beta),
+            ] {
+                if let Some(latency) = latency {
+                    *reported =
+                        latency.step(&self.start_state, input, &self.state) * RAD_PER_OUTPUT_UNIT;
+                }
+            }
+        }
         let start_s = self.period_index as f64 * self.period_s;
         let end_s = (self.period_index + 1) as f64 * self.period_s;
         let sensor_samples = match &mut self.optical {
@@ -418,8 +458,8 @@ impl Plant {
             None => Vec::new(),
         };
         let measured_angles_rad = match &mut self.angle_sensor {
-            Some(sensor) => sensor.measure(true_angles_rad),
-            None => true_angles_rad,
+            Some(sensor) => sensor.measure(reported_rad),
+            None => reported_rad,
         };
         let period_index = self.period_index;
         self.period_index += 1;

@@ -29,7 +29,7 @@ use scanhil_protocol::plant_units::{
     AMPS_PER_INPUT_UNIT, ActuatorPair, OUTPUT_UNITS_AT_FULL_RANGE,
 };
 
-use crate::mirror::MirrorConfig;
+use crate::mirror::{AxisDynamics, MirrorConfig, SensingAxis};
 
 /// The paper's coil power limit, in W.
 pub const PAPER_POWER_LIMIT_W: f64 = 30.0;
@@ -41,18 +41,22 @@ const LIMIT_TOLERANCE: f64 = 1e-9;
 
 /// The coil resistance per actuator axis, in ohm, for which full-range sines at 52 Hz on both
 /// sensing axes at once dissipate exactly [`PAPER_POWER_LIMIT_W`] on average (see the module
-/// doc): `R = 30 W / I^2` with `I` the [`full_range_current_a`] at 52 Hz.
+/// doc): `R = 2 x 30 W / (I_alpha^2 + I_beta^2)` with `I` each axis's
+/// [`full_range_current_a`] at 52 Hz (`30 W / I^2` when the axes are alike).
 #[must_use]
 pub fn coil_resistance_ohm(mirror: &MirrorConfig) -> f64 {
-    let amplitude_a = full_range_current_a(mirror, PAPER_FULL_RANGE_LIMIT_HZ);
-    PAPER_POWER_LIMIT_W / (amplitude_a * amplitude_a)
+    let sum_a2: f64 = SensingAxis::BOTH
+        .iter()
+        .map(|&axis| full_range_current_a(&mirror.axis(axis), PAPER_FULL_RANGE_LIMIT_HZ).powi(2))
+        .sum();
+    2.0 * PAPER_POWER_LIMIT_W / sum_a2
 }
 
-/// The coil current amplitude (A, on one sensing axis) of a full-range sine at `freq_hz`.
+/// The coil current amplitude (A, on one sensing axis of dynamics `axis`) of a full-range
+/// sine at `freq_hz`.
 #[must_use]
-pub fn full_range_current_a(mirror: &MirrorConfig, freq_hz: f64) -> f64 {
-    OUTPUT_UNITS_AT_FULL_RANGE / mirror.gain_at(std::f64::consts::TAU * freq_hz)
-        * AMPS_PER_INPUT_UNIT
+pub fn full_range_current_a(axis: &AxisDynamics, freq_hz: f64) -> f64 {
+    OUTPUT_UNITS_AT_FULL_RANGE / axis.gain_at(std::f64::consts::TAU * freq_hz) * AMPS_PER_INPUT_UNIT
 }
 
 /// What happens when the window mean would exceed the limit.
@@ -241,7 +245,7 @@ mod tests {
     #[test]
     fn resistance_is_derived_from_the_model_and_near_two_ohm() {
         let mirror = MirrorConfig::default();
-        let amplitude_a = full_range_current_a(&mirror, 52.0);
+        let amplitude_a = full_range_current_a(&mirror.axis(SensingAxis::Alpha), 52.0);
         assert!((amplitude_a - 3.856).abs() < 1e-3, "{amplitude_a}");
         let r = coil_resistance_ohm(&mirror);
         assert!((r - 2.0172).abs() < 1e-4, "{r}");
@@ -253,6 +257,21 @@ mod tests {
             ..mirror
         };
         assert!((coil_resistance_ohm(&stiffer) / r - 4.0).abs() < 1e-9);
+        // Axes that differ: the two full-range currents share the 30 W.
+        let beta_stiffer = MirrorConfig {
+            beta: crate::mirror::AxisOverrides {
+                dc_gain: Some(22.8),
+                ..Default::default()
+            },
+            ..MirrorConfig::default()
+        };
+        let i_beta = amplitude_a / 2.0;
+        let mixed = coil_resistance_ohm(&beta_stiffer);
+        assert!(
+            (mixed * (amplitude_a.powi(2) / 2.0 + i_beta.powi(2) / 2.0) - PAPER_POWER_LIMIT_W)
+                .abs()
+                < 1e-9
+        );
     }
 
     #[test]

@@ -68,8 +68,8 @@ pub struct StudyRow {
 /// The coil current commands of the study's drive, one per control period.
 #[must_use]
 pub fn lissajous_drive_a(mirror: &MirrorConfig, period_s: f64, periods: usize) -> Vec<[f64; 2]> {
-    let amp_alpha = full_range_current_a(mirror, ALPHA_DRIVE_HZ);
-    let amp_beta = full_range_current_a(mirror, BETA_DRIVE_HZ);
+    let amp_alpha = full_range_current_a(&mirror.axis(SensingAxis::Alpha), ALPHA_DRIVE_HZ);
+    let amp_beta = full_range_current_a(&mirror.axis(SensingAxis::Beta), BETA_DRIVE_HZ);
     (0..periods)
         .map(|k| {
             let t = k as f64 * period_s;

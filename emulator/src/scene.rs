@@ -252,7 +252,7 @@ impl Scene {
         if self.integrator.substeps == 0 {
             return Err(("integrator.substeps".into(), "must be at least 1".into()));
         }
-        self.mirror.validate()?;
+        self.mirror.validate(self.period_s())?;
         if self.has(Part::CrossTalk) {
             self.cross_talk.validate()?;
         }

@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use scanhil_emulator::mirror::MirrorConfig;
+use scanhil_emulator::mirror::{MirrorConfig, SensingAxis};
 use scanhil_emulator::plant::{Plant, PlantEvent};
 use scanhil_emulator::power::{coil_resistance_ohm, full_range_current_a};
 use scanhil_emulator::scene::{Part, Scene, SceneError};
@@ -48,7 +48,7 @@ fn full_range_sines_at_52_hz_on_both_axes_dissipate_exactly_30_w_and_reach_one_a
     assert!(
         (plant.coil_resistance_ohm() - coil_resistance_ohm(&MirrorConfig::default())).abs() < 1e-15
     );
-    let amplitude_a = full_range_current_a(&s.mirror, 52.0);
+    let amplitude_a = full_range_current_a(&s.mirror.axis(SensingAxis::Alpha), 52.0);
     let steps = sine_52_hz(&mut plant, amplitude_a, 30_000);
     assert!(
         steps.iter().all(|s| s.events.is_empty()),
@@ -74,7 +74,7 @@ fn full_range_sines_at_52_hz_on_both_axes_dissipate_exactly_30_w_and_reach_one_a
 fn over_the_limit_clamp_holds_30_w_and_reports_it() {
     let s = scene(&POWER_SCENE.replace("ON_EXCEED", "clamp"));
     let mut plant = Plant::from_scene(&s).unwrap();
-    let amplitude_a = 1.1 * full_range_current_a(&s.mirror, 52.0);
+    let amplitude_a = 1.1 * full_range_current_a(&s.mirror.axis(SensingAxis::Alpha), 52.0);
     let steps = sine_52_hz(&mut plant, amplitude_a, 30_000);
     let clamped = steps
         .iter()
@@ -93,7 +93,7 @@ fn over_the_limit_clamp_holds_30_w_and_reports_it() {
 fn over_the_limit_fault_latches_zero_current_until_reset() {
     let s = scene(&POWER_SCENE.replace("ON_EXCEED", "fault"));
     let mut plant = Plant::from_scene(&s).unwrap();
-    let amplitude_a = 1.1 * full_range_current_a(&s.mirror, 52.0);
+    let amplitude_a = 1.1 * full_range_current_a(&s.mirror.axis(SensingAxis::Alpha), 52.0);
     let steps = sine_52_hz(&mut plant, amplitude_a, 30_000);
     let first = steps.iter().position(|s| s.faulted).expect("must fault");
     assert!(

@@ -67,9 +67,12 @@ pub struct InProcessOutcome {
 /// Frames counted where they leave and reach each side.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct WireCounts {
-    /// Frames the host sent.
+    /// Frames the host sent through the injected faults.
     pub host_sent: u64,
-    /// Frames handed to the node.
+    /// Frames of the run's stop (the zero command, the end of the run) the host sent past the
+    /// injected faults, straight to the node.
+    pub stop_frames: u64,
+    /// Frames handed to the node through the injected faults (the stop's frames not counted).
     pub node_received: u64,
     /// Frames the node sent.
     pub node_sent: u64,
@@ -226,6 +229,11 @@ pub fn run_probed(
             HostAction::Send(frames) => {
                 for frame in &frames {
                     transport.host_sends(&frame.frame, frame.t_s, &mut lockstep_node)?;
+                }
+            }
+            HostAction::SendStop(frames) => {
+                for frame in &frames {
+                    transport.host_sends_stop(&frame.frame, frame.t_s, &mut lockstep_node)?;
                 }
             }
             HostAction::AwaitReading { period, t_s } => match transport.host_receives(t_s)? {
@@ -399,29 +407,43 @@ impl Transport {
     ) -> anyhow::Result<()> {
         self.wire.host_sent += 1;
         match &mut self.faults {
-            None => self.node_receives(frame, t_s, node),
+            None => self.node_receives(frame, t_s, node, true),
             Some(faults) => {
                 let passed: Vec<CanFrame> = faults.outgoing(frame, t_s).collect();
                 passed
                     .iter()
-                    .try_for_each(|frame| self.node_receives(frame, t_s, node))
+                    .try_for_each(|frame| self.node_receives(frame, t_s, node, true))
             }
         }
     }
 
-    /// A frame reaches the node at loop time `t_s`: recorded, then handled by the node, whose
-    /// answers are queued for the host (frames) or go out on the ILD stream (samples).
-    fn node_receives(
+    /// The host sends a frame of the run's stop at loop time `t_s`: past the injected faults,
+    /// straight to the node (counted apart, in [`WireCounts::stop_frames`]).
+    fn host_sends_stop(
         &mut self,
         frame: &CanFrame,
         t_s: f64,
         node: &mut LockstepNode<'_>,
     ) -> anyhow::Result<()> {
+        self.wire.stop_frames += 1;
+        self.node_receives(frame, t_s, node, false)
+    }
+
+    /// A frame reaches the node at loop time `t_s`: recorded, then handled by the node, whose
+    /// answers are queued for the host (frames) or go out on the ILD stream (samples). A
+    /// frame that came `through_faults` is counted in [`WireCounts::node_received`].
+    fn node_receives(
+        &mut self,
+        frame: &CanFrame,
+        t_s: f64,
+        node: &mut LockstepNode<'_>,
+        through_faults: bool,
+    ) -> anyhow::Result<()> {
         self.record(frame, t_s)?;
         if self.node_finished {
             return Ok(());
         }
-        self.wire.node_received += 1;
+        self.wire.node_received += u64::from(through_faults);
         match node.on_frame(frame)? {
             NodeReply::Ignored => {}
             NodeReply::Send(sends) => {

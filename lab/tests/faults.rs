@@ -65,13 +65,27 @@ fn node(faults: &Value, field: &str) -> u64 {
     faults["node_detected"][field].as_u64().unwrap()
 }
 
-/// The run completed every period and the node holds the last command (not a fault's zero).
+/// The run completed every period and ended with the coils at zero: the host's zero command
+/// (never faulted) acknowledged by the node, which is ready (not in a fault) and holds 0 A.
 fn completed(outcome: &InProcessOutcome, faults: &Value) {
     let record = &outcome.run.record;
     assert_eq!(record.periods_done, record.periods_planned, "{faults:#}");
     assert!(record.stopped_by.is_none(), "{:?}", record.stopped_by);
     assert_eq!(faults["host_detected"]["stopped_by"], Value::Null);
-    assert_eq!(faults["node_detected"]["final_state"], "running");
+    assert_eq!(faults["node_detected"]["final_state"], "ready");
+    assert!(record.coils_at_end.zero_commanded && record.coils_at_end.acknowledged);
+    held_at_zero(faults);
+    assert_eq!(
+        outcome.wire.stop_frames, 2,
+        "the zero command and the end of the run"
+    );
+}
+
+/// The node holds 0 A on both coils.
+fn held_at_zero(faults: &Value) {
+    let held = &faults["node_detected"]["held_coil_currents_a"];
+    assert_eq!(held["a"], 0.0, "{held}");
+    assert_eq!(held["b"], 0.0, "{held}");
 }
 
 fn injected_one(faults: &Value, direction: &str, fault: &str, period: u64) {
@@ -277,9 +291,34 @@ fn a_node_that_goes_silent_ends_the_run_by_the_watchdog_with_zero_current() {
     assert!(stopped_by.contains("link timeout"), "{stopped_by}");
     assert_eq!(faults["host_detected"]["stopped_in_period"], 0);
     // The host's zero command reached the node.
-    let held = &faults["node_detected"]["held_coil_currents_a"];
-    assert_eq!(held["a"], 0.0, "{held}");
-    assert_eq!(held["b"], 0.0, "{held}");
+    held_at_zero(&faults);
+}
+
+/// Issue 20: with bit-flip injection the final zero command was itself corrupted. Every frame
+/// the host sends has a bit flipped: the first Step never steps the node, so the run stops by
+/// the watchdog after the node took a corrupted first command; the stop's zero command passes
+/// no fault and the node ends at 0 A, whatever the seed (a flipped zero holds a current of
+/// 2^bit uA unless the bit is in the counter: 40 of its 64 bits are currents).
+#[test]
+fn the_stops_zero_command_is_never_bit_flipped() {
+    for seed in 1..=8 {
+        let scenario = small_loop(serde_json::json!({
+            "seed": seed,
+            "host_to_node": {"bit_flip_rate": 1.0}
+        }));
+        let (outcome, faults) = run_faulty(&scenario);
+        assert!(outcome.run.record.stopped_by.is_some(), "seed {seed}");
+        assert!(
+            outcome.run.record.coils_at_end.zero_commanded,
+            "seed {seed}"
+        );
+        let ledger = &faults["injected"]["frames"]["host_to_node"]["ledger"];
+        assert_eq!(
+            ledger["bit_flipped"], ledger["offered"],
+            "seed {seed}: {ledger}"
+        );
+        held_at_zero(&faults);
+    }
 }
 
 #[test]

@@ -42,7 +42,10 @@ fn faults_declared_in_a_scenario_are_injected_detected_and_reported_over_ptys() 
     let node = &faults["node_detected"];
     assert!(host["repeated_steps"].as_u64().unwrap() >= 2, "{host}");
     assert!(node["repeated_steps"].as_u64().unwrap() >= 1, "{node}");
-    assert_eq!(node["final_state"], "running");
+    // Complete, and ended with the coils at zero: the end's zero command is never faulted.
+    assert_eq!(node["final_state"], "ready");
+    assert_eq!(node["held_coil_currents_a"]["a"], 0.0, "{node}");
+    assert_eq!(node["held_coil_currents_a"]["b"], 0.0, "{node}");
     assert_eq!(host["stopped_by"], serde_json::Value::Null);
     // The laser off for 5 ms at 20 kHz: 100 samples, all seen by the host as `laser_off`.
     let sensor = &faults["injected"]["sensor_samples"];

@@ -18,6 +18,8 @@ mod emulator_watchdog;
 mod peers;
 // A whole scan over ptys: the Duplo stud's height, tracking error, recordings that decode.
 mod scan_result;
+// A dual-tone `scanhil design` made for the 1 Mbit/s bus's rate scans the Duplo stud.
+mod designed_controller;
 // Lockstep determinism: the same seed twice gives bit-identical recordings and reports.
 mod determinism;
 // The sensor's samples on CAN or on the ILD stream: the same scan, the last period included.

@@ -1,8 +1,8 @@
 //! A whole lockstep scan of the Duplo brick over ptys.
 
 use crate::util::{
-    assert_gapless, assert_success, decode_candump, decode_ild, fixture, number, report,
-    run_scanhil,
+    assert_coils_at_zero, assert_gapless, assert_success, assert_tracks_as_predicted,
+    decode_candump, decode_ild, fixture, number, report, run_scanhil,
 };
 
 /// The stud height of the Duplo scene, mm (the paper's mechanical reference).
@@ -29,6 +29,7 @@ fn duplo_stud_height_tracking_and_recordings() {
     ]);
     assert_success(&output, "scanhil scan test-duplo-stud");
     let report = report(out.path());
+    assert_coils_at_zero(&report);
 
     let height = number(&report, "/imaging/feature/height_mm");
     let std = number(&report, "/imaging/feature/std_mm");
@@ -46,20 +47,7 @@ fn duplo_stud_height_tracking_and_recordings() {
     // After the lead-in the PID tracks as the nominal loop predicts (alpha, 52 Hz: 9.0 %
     // against 8.9 %); beta (27 Hz, 1.0 % against 0.83 %) also carries alpha's cross-talk,
     // which the one-axis prediction leaves out. Too good fails as well as too bad.
-    for (axis, band) in [("alpha", (0.97, 1.10)), ("beta", (1.0, 1.4))] {
-        let measured = number(
-            &report,
-            &format!("/tracking_error/frame/{axis}/rms_relative"),
-        );
-        let predicted = number(
-            &report,
-            &format!("/predicted_tracking_error/{axis}_rms_relative"),
-        );
-        assert!(
-            (band.0..=band.1).contains(&(measured / predicted)),
-            "{axis}: measured {measured}, predicted {predicted}, band {band:?}"
-        );
-    }
+    assert_tracks_as_predicted(&report, &[("alpha", (0.97, 1.10)), ("beta", (1.0, 1.4))]);
     assert_eq!(number(&report, "/periods/saturated_in_frame"), 0.0);
 
     // 1 s of lead-in (the PID's settling, whole 1 s Lissajous frames), then 0.25 s recorded.
@@ -68,7 +56,12 @@ fn duplo_stud_height_tracking_and_recordings() {
     assert_eq!(number(&report, "/frame/start_s"), 1.0);
     let mirror = decode_candump(&out.path().join("fsm.log"));
     assert_eq!(mirror.angle_seqs.len(), periods);
-    assert_eq!(mirror.command_seqs.len(), periods);
+    // One command a period, then the end's zero.
+    assert_eq!(mirror.command_seqs.len(), periods + 1);
+    assert_eq!(
+        mirror.last_command_a,
+        Some(scanhil_protocol::plant_units::ActuatorPair::default())
+    );
     assert_gapless(&mirror.angle_seqs, "AngleReading");
     assert_gapless(&mirror.command_seqs, "CoilCommand");
 

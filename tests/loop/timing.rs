@@ -6,8 +6,8 @@
 use std::time::Duration;
 
 use crate::util::{
-    ServedEmulator, decode_candump, fixture, number, realtime_scan_args, recording_grows, report,
-    run_scanhil, scan_against_served_emulator, signal,
+    ServedEmulator, assert_coils_at_zero, decode_candump, fixture, number, realtime_scan_args,
+    recording_grows, report, run_scanhil, scan_against_served_emulator, signal,
 };
 
 /// Asserts what must hold of one [`PeriodStats`] block at `side` in `report`, whatever the
@@ -48,6 +48,7 @@ fn a_realtime_scan_completes_and_its_timing_figures_add_up() {
     );
     let report = report(out.path());
     assert_eq!(report["outcome"]["complete"], true, "{}", report["outcome"]);
+    assert_coils_at_zero(&report);
     let planned = 4000.0; // 0.2 s at 20 kHz
     // Controller: every planned period was either answered or counted missed; the reading
     // intervals are one fewer than the readings; a late answer is exactly an answer slower

@@ -101,6 +101,22 @@ pub fn realtime_scan_args(out: &Path, duration_s: &str, extra: &[&str]) -> Vec<S
     args
 }
 
+/// Asserts that a complete scan's `report.json` says it ended with the coils at zero: the
+/// host's zero command acknowledged by the node, which is ready and holds 0 A on both coils.
+pub fn assert_coils_at_zero(report: &serde_json::Value) {
+    let coils = &report["coils_at_end"];
+    assert_eq!(coils["zero_commanded"], true, "{coils}");
+    assert_eq!(coils["acknowledged"], true, "{coils}");
+    assert_eq!(coils["node_final_state"], "ready", "{coils}");
+    assert_eq!(coils["node_held_coil_currents_a"]["a"], 0.0, "{coils}");
+    assert_eq!(coils["node_held_coil_currents_a"]["b"], 0.0, "{coils}");
+    assert_eq!(
+        report["emulator"]["summary"]["ended_by"], "controller_status",
+        "the host's end of the run ended the emulator's: {}",
+        report["emulator"]["summary"]
+    );
+}
+
 /// Runs `scanhil` with `args` and returns its output; kills it and panics after [`RUN_LIMIT`].
 pub fn run_scanhil(args: &[&str]) -> Output {
     run_scanhil_with(args, |_| {})
@@ -143,6 +159,25 @@ pub fn number(value: &serde_json::Value, pointer: &str) -> f64 {
         .pointer(pointer)
         .and_then(serde_json::Value::as_f64)
         .unwrap_or_else(|| panic!("{pointer} is not a number in {value:#}"))
+}
+
+/// Asserts the frame's measured tracking error over the predicted one is inside each axis'
+/// band (too good fails as well as too bad).
+pub fn assert_tracks_as_predicted(report: &serde_json::Value, bands: &[(&str, (f64, f64))]) {
+    for (axis, band) in bands {
+        let measured = number(
+            report,
+            &format!("/tracking_error/frame/{axis}/rms_relative"),
+        );
+        let predicted = number(
+            report,
+            &format!("/predicted_tracking_error/{axis}_rms_relative"),
+        );
+        assert!(
+            (band.0..=band.1).contains(&(measured / predicted)),
+            "{axis}: measured {measured}, predicted {predicted}, band {band:?}"
+        );
+    }
 }
 
 /// What a recording held.

@@ -205,6 +205,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             )
         }
     };
+    let coils_at_end = link.end();
     let rows: Vec<serde_json::Value> = points
         .iter()
         .map(|p| {
@@ -230,6 +231,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "seed": args.seed,
         "model": if args.mode == Mode::OpenLoop { "z^-1 ZOH(eq. 4)" } else { "nominal T = CP/(1+CP)" },
         "points": rows,
+        "coils_at_end": coils_at_end,
     });
     let text = serde_json::to_string_pretty(&json)?;
     match &args.out {

@@ -4,6 +4,7 @@ pub mod analyze;
 pub mod compare;
 pub mod conformance;
 pub mod decode;
+pub mod design;
 pub mod identify;
 pub mod reconstruct;
 pub mod scan;

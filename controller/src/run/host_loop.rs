@@ -7,8 +7,11 @@
 //! Per period k: the command from the newest angle reading, CoilCommand(k) and Step(k) at loop
 //! time `k * Ta`, then AngleReading(k), awaited at loop time `(k + 1) * Ta`. A node's
 //! LinkTimeout fault or a failed link stops the loop (zero current commanded, best effort);
-//! after the last period the controller's Status(ready) at `periods * Ta` ends the run, and
-//! the node's Status(ready) (or its hang-up or silence) is the last thing awaited.
+//! after the last period the run ends with CoilCommand(0) and the controller's Status(ready)
+//! at `periods * Ta`, and the node's Status(ready) (or its hang-up or silence) is the last
+//! thing awaited: the node answers the end after it took the zero command, so its answer
+//! acknowledges the coils at zero ([`CoilsAtEnd`]). The frames of a stop ([`HostAction::SendStop`])
+//! never pass through injected faults.
 //!
 //! [`super::lockstep`] runs it over a real link; the `scanhil-lab` crate runs it in process.
 
@@ -25,6 +28,7 @@ use super::loop_error::LoopError;
 use super::pairing::AngleTrack;
 use super::power_backoff::{BackoffLog, PowerBackoff};
 use super::tracking::TrackingRecorder;
+pub use crate::link::CoilsAtEnd;
 use crate::scan_controller::ScanController;
 use crate::trajectory::Trajectory;
 
@@ -62,6 +66,8 @@ pub struct LoopRecord {
     pub power_backoff: Option<BackoffLog>,
     /// Step frames sent again because no reading came within one answer allowance.
     pub repeated_steps: u64,
+    /// The zero command the run ended with, and whether the node acknowledged it.
+    pub coils_at_end: CoilsAtEnd,
 }
 
 impl LoopRecord {
@@ -82,6 +88,7 @@ impl LoopRecord {
             wall_clock_epoch: None,
             power_backoff: None,
             repeated_steps: 0,
+            coils_at_end: CoilsAtEnd::default(),
         }
     }
 
@@ -152,6 +159,9 @@ pub struct StampedFrame {
 pub enum HostAction {
     /// Send these frames in order; report a failure with [`HostLoop::on_error`].
     Send(Vec<StampedFrame>),
+    /// Send the frames of a stop (the zero command, the end of the run) in order, past any
+    /// injected fault: they must reach the node as sent. A failure is reported like any.
+    SendStop(Vec<StampedFrame>),
     /// Wait for AngleReading(`period`) within the watchdog's allowance; frames received
     /// meanwhile are stamped with loop time `t_s` and go to [`HostLoop::on_frame`].
     AwaitReading {
@@ -191,7 +201,7 @@ enum Phase {
     Reading(u64),
     /// Stopped in period k: the zero command goes out next.
     Stopping(u64),
-    /// The controller's Status(ready) goes out next.
+    /// The zero command and the controller's Status(ready) go out next.
     Closing,
     /// The node's Status(ready) is awaited.
     NodeReady,
@@ -311,14 +321,18 @@ impl<'a> HostLoop<'a> {
                 self.phase = Phase::Done;
                 let t_s = (k + 1) as f64 * self.period_s;
                 match coil_command_frame(k, ActuatorPair::default(), t_s) {
-                    Ok(frame) => HostAction::Send(vec![frame]),
+                    Ok(frame) => {
+                        self.record.coils_at_end.zero_commanded = true;
+                        HostAction::SendStop(vec![frame])
+                    }
                     Err(_) => HostAction::Done,
                 }
             }
-            Phase::Closing => match end_frame(self.record.periods_done, self.period_s) {
-                Ok(frame) => {
+            Phase::Closing => match stop_frames(self.record.periods_done, self.period_s) {
+                Ok(frames) => {
                     self.phase = Phase::NodeReady;
-                    HostAction::Send(vec![frame])
+                    self.record.coils_at_end.zero_commanded = true;
+                    HostAction::SendStop(frames.to_vec())
                 }
                 Err(error) => {
                     self.record.stopped_by = Some(error);
@@ -382,6 +396,7 @@ impl<'a> HostLoop<'a> {
                     }
                     Ok(_) if self.inbox.events().len() > events && self.inbox.node_ready_last() => {
                         self.phase = Phase::Done;
+                        self.record.coils_at_end.acknowledged = true;
                         Heard::Ended
                     }
                     Ok(_) => Heard::Nothing,
@@ -488,12 +503,27 @@ pub fn coil_command_frame(
     stamped(&command, t_s)
 }
 
+/// The end of a run after `periods_done` periods, at loop time `periods_done * period_s`:
+/// CoilCommand(0) (its sequence counter the next period's) and the controller's Status(ready).
+/// The node answers the Status after it took the command, so its Status(ready) acknowledges
+/// the coils at zero.
+///
+/// # Errors
+/// [`LoopError::Encode`] when a frame cannot be encoded.
+pub fn stop_frames(periods_done: u64, period_s: f64) -> Result<[StampedFrame; 2], LoopError> {
+    let t_s = periods_done as f64 * period_s;
+    Ok([
+        coil_command_frame(periods_done, ActuatorPair::default(), t_s)?,
+        end_frame(periods_done, period_s)?,
+    ])
+}
+
 /// The controller's Status(ready) after `periods_done` periods, at loop time
-/// `periods_done * period_s`: the end of a lockstep run.
+/// `periods_done * period_s`: the end of a run.
 ///
 /// # Errors
 /// [`LoopError::Encode`] when the status cannot be encoded.
-pub fn end_frame(periods_done: u64, period_s: f64) -> Result<StampedFrame, LoopError> {
+fn end_frame(periods_done: u64, period_s: f64) -> Result<StampedFrame, LoopError> {
     let t_s = periods_done as f64 * period_s;
     let status = Message::Status(Status {
         node: NodeId::Controller,

@@ -9,7 +9,7 @@ use scanhil_protocol::can::CanFrame;
 use super::host_loop::{Heard, HostAction, HostLoop, LoopRecord};
 use super::interrupt::Interrupt;
 use super::loop_error::LoopError;
-use super::mirror_link::{MirrorLink, STOP_SEND_ALLOWANCE};
+use super::mirror_link::MirrorLink;
 use super::progress::Progress;
 use super::sensor_link::SensorLink;
 
@@ -51,12 +51,25 @@ pub async fn run(
                     periods_started += 1;
                 }
                 if let Err(error) = mirror
-                    .send_within(period, &frames, send_deadline(&host, allowance), interrupt)
+                    .send_within(
+                        period,
+                        &frames,
+                        tokio::time::Instant::now() + allowance,
+                        interrupt,
+                    )
                     .await
                 {
                     host.on_error(error);
                 }
                 // Each wait's allowance starts when its frames went out.
+                sent_at = tokio::time::Instant::now();
+                continue;
+            }
+            HostAction::SendStop(frames) => {
+                let period = host.record().periods_done;
+                if let Err(error) = mirror.send_stop(period, &frames).await {
+                    host.on_error(error);
+                }
                 sent_at = tokio::time::Instant::now();
                 continue;
             }
@@ -77,7 +90,7 @@ pub async fn run(
                     None => continue,
                     Some(Err(_elapsed)) => match host.on_silence() {
                         Some(step) => {
-                            let deadline = send_deadline(&host, allowance);
+                            let deadline = tokio::time::Instant::now() + allowance;
                             if let Err(error) = mirror
                                 .send_within(period, &[step], deadline, interrupt)
                                 .await
@@ -120,15 +133,4 @@ pub async fn run(
     mirror.restore_inbox(inbox);
     progress.set(record.periods_done);
     record
-}
-
-/// How long a send may take: the watchdog's allowance at most (a node that stopped reading
-/// fills the line), a stopping loop's zero command far less.
-fn send_deadline(host: &HostLoop<'_>, allowance: std::time::Duration) -> tokio::time::Instant {
-    let send_allowance = if host.record().stopped_by.is_some() {
-        STOP_SEND_ALLOWANCE
-    } else {
-        allowance
-    };
-    tokio::time::Instant::now() + send_allowance
 }

@@ -9,7 +9,7 @@ use scanhil_protocol::link::{Arrival, CanLink, LinkError, VirtualClock};
 use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
 pub use super::host_inbox::{HostInbox, MirrorLinkCounters, NodeEvent};
-use super::host_loop::{StampedFrame, coil_command_frame, period_frames};
+use super::host_loop::{CoilsAtEnd, StampedFrame, coil_command_frame, period_frames, stop_frames};
 use super::interrupt::Interrupt;
 use super::link_faults::{InjectedFrameFaults, LinkFaults};
 pub use super::loop_error::LoopError;
@@ -202,15 +202,65 @@ impl MirrorLink {
     }
 
     /// After a failure: answers period `k` with zero current, best effort (the link may be
-    /// gone, or full because the node stopped reading). The write is given up after
-    /// [`STOP_SEND_ALLOWANCE`], its one bound: a stopping loop's zero command gets the stop's
-    /// allowance, not the watchdog's.
-    pub async fn command_zero(&mut self, k: u64) {
+    /// gone, or full because the node stopped reading), past any injected fault
+    /// ([`Self::send_stop`]). Returns whether it went out.
+    pub async fn command_zero(&mut self, k: u64) -> bool {
         let zero = coil_command_frame(k, ActuatorPair::default(), (k + 1) as f64 * self.period_s);
-        if let Ok(frame) = zero {
-            let deadline = tokio::time::Instant::now() + STOP_SEND_ALLOWANCE;
-            let _ = self.send_until(k, &[frame], deadline).await;
+        match zero {
+            Ok(frame) => self.send_stop(k, &[frame]).await.is_ok(),
+            Err(_) => false,
         }
+    }
+
+    /// Ends a session of `periods` periods with the node still answering (a complete scan, an
+    /// identification, a conformance run): [`Self::send_end`], then [`Self::await_end`].
+    pub async fn end_session(&mut self, periods: u64) -> CoilsAtEnd {
+        let zero_commanded = self.send_end(periods).await.is_ok();
+        CoilsAtEnd {
+            zero_commanded,
+            acknowledged: zero_commanded && self.await_end(periods).await,
+        }
+    }
+
+    /// The end of a session of `periods` periods: CoilCommand(0) and the controller's
+    /// Status(ready) ([`stop_frames`]), past any injected fault ([`Self::send_stop`]).
+    ///
+    /// # Errors
+    /// As [`Self::send_stop`].
+    pub async fn send_end(&mut self, periods: u64) -> Result<(), LoopError> {
+        let frames = stop_frames(periods, self.period_s)?;
+        self.send_stop(periods, &frames).await
+    }
+
+    /// After [`Self::send_end`]: waits up to the watchdog's allowance for the node's
+    /// Status(ready), which it sends after it took the zero command; true when it came (the
+    /// frames on the way are filed as usual).
+    pub async fn await_end(&mut self, periods: u64) -> bool {
+        let t_s = periods as f64 * self.period_s;
+        let deadline = tokio::time::Instant::now() + self.total_allowance();
+        while let Ok(Ok(frame)) = tokio::time::timeout_at(deadline, self.recv_at(t_s)).await {
+            let events = self.inbox.events().len();
+            let _ = self.classify(&frame, t_s);
+            if self.inbox.events().len() > events && self.inbox.node_ready_last() {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Sends the frames of a stop (the zero command, the end of the run) past any injected
+    /// fault, so they reach the node as sent, within [`STOP_SEND_ALLOWANCE`]: a stopping
+    /// loop's frames get the stop's allowance, not the watchdog's.
+    ///
+    /// # Errors
+    /// [`LoopError::SendTimeout`], link errors.
+    pub async fn send_stop(
+        &mut self,
+        period: u64,
+        frames: &[StampedFrame],
+    ) -> Result<(), LoopError> {
+        let deadline = tokio::time::Instant::now() + STOP_SEND_ALLOWANCE;
+        self.send_until(period, frames, deadline, false).await
     }
 
     /// At the end of a session (normal end or error path): closes the link's SLCAN channel
@@ -277,7 +327,7 @@ impl MirrorLink {
         frames: &[StampedFrame],
     ) -> Result<(), LoopError> {
         let deadline = tokio::time::Instant::now() + self.total_allowance();
-        self.send_until(period, frames, deadline).await
+        self.send_until(period, frames, deadline, true).await
     }
 
     /// [`Self::send_period`], giving up at `deadline` or when a stopping signal comes: a full
@@ -293,20 +343,22 @@ impl MirrorLink {
         interrupt: &mut Interrupt,
     ) -> Result<(), LoopError> {
         tokio::select! {
-            sent = self.send_until(period, frames, deadline) => sent,
+            sent = self.send_until(period, frames, deadline, true) => sent,
             signal = interrupt.recv() => Err(LoopError::Interrupted { signal }),
         }
     }
 
-    /// Sends `frames`, or [`LoopError::SendTimeout`] when they are not out by `deadline`.
+    /// Sends `frames` (through the declared faults when `faulted`), or
+    /// [`LoopError::SendTimeout`] when they are not out by `deadline`.
     async fn send_until(
         &mut self,
         period: u64,
         frames: &[StampedFrame],
         deadline: tokio::time::Instant,
+        faulted: bool,
     ) -> Result<(), LoopError> {
         let started = tokio::time::Instant::now();
-        match tokio::time::timeout_at(deadline, self.write_period(frames)).await {
+        match tokio::time::timeout_at(deadline, self.write_frames(frames, faulted)).await {
             Ok(sent) => sent,
             Err(_elapsed) => Err(LoopError::SendTimeout {
                 link: self.port.name().to_owned(),
@@ -316,11 +368,16 @@ impl MirrorLink {
         }
     }
 
-    /// Queues each frame (through the declared faults) and writes them with one flush.
-    async fn write_period(&mut self, frames: &[StampedFrame]) -> Result<(), LoopError> {
+    /// Queues each frame (through the declared faults when `faulted`) and writes them with
+    /// one flush.
+    async fn write_frames(
+        &mut self,
+        frames: &[StampedFrame],
+        faulted: bool,
+    ) -> Result<(), LoopError> {
         for frame in frames {
             self.at(frame.t_s);
-            match &mut self.faults {
+            match self.faults.as_mut().filter(|_| faulted) {
                 None => self.port.queue(&frame.frame).await?,
                 Some(faults) => {
                     let passed: Vec<CanFrame> = faults.outgoing(&frame.frame, frame.t_s).collect();

@@ -217,6 +217,7 @@ pub fn write(
             ScanEnd::Complete => serde_json::json!({"complete": true}),
             ScanEnd::Stopped(why) => serde_json::json!({"complete": false, "stopped_by": why}),
         },
+        "coils_at_end": coils_at_end(record, run.emulator_summary.as_ref()),
         "run_time_s": run.run_time_s,
         "periods": {
             "planned": record.periods_planned,
@@ -269,6 +270,23 @@ pub fn write(
     Ok(ScanResult {
         end,
         failed_outputs: failed,
+    })
+}
+
+/// `report.json` `coils_at_end`: the zero command the run ended with and whether the node
+/// acknowledged it ([`super::host_loop::CoilsAtEnd`]), and, when an emulator served the mirror,
+/// the node's own word on it: its final state and the coil currents it holds (`null` for a
+/// real node, which reports none).
+fn coils_at_end(
+    record: &super::host_loop::LoopRecord,
+    emulator: Option<&serde_json::Value>,
+) -> serde_json::Value {
+    let summary = emulator.map(|emulator| &emulator["summary"]);
+    serde_json::json!({
+        "zero_commanded": record.coils_at_end.zero_commanded,
+        "acknowledged": record.coils_at_end.acknowledged,
+        "node_final_state": summary.map(|summary| &summary["final_state"]),
+        "node_held_coil_currents_a": summary.map(|summary| &summary["held_coil_currents_a"]),
     })
 }
 

@@ -13,7 +13,7 @@ use super::emulator_process::EmulatorProcess;
 use super::mirror_link::MirrorLink;
 use super::scenario::{NodeLink, TimingConfig};
 use super::{LinkPlan, open_links};
-use crate::link::{LinkError, PlantLink};
+use crate::link::{CoilsAtEnd, LinkError, PlantLink};
 
 /// Wall-clock allowance per missed answer.
 const ANSWER_ALLOWANCE: Duration = Duration::from_millis(10);
@@ -27,6 +27,8 @@ pub struct LinkedPlant {
     mirror: MirrorLink,
     period_s: f64,
     next_period: u64,
+    /// How the session ended, once it has ([`PlantLink::end`]).
+    ended: Option<CoilsAtEnd>,
     _emulator: Option<EmulatorProcess>,
 }
 
@@ -74,15 +76,18 @@ impl LinkedPlant {
             mirror: links.mirror,
             period_s,
             next_period: 0,
+            ended: None,
             _emulator: links.emulator,
         })
     }
 }
 
-/// Closes the mirror's link explicitly (`C` on SLCAN, bounded wait) however identification
-/// ends: normally, on an error, or unwinding.
+/// Ends the session with the coils at zero (if [`PlantLink::end`] has not) and closes the
+/// mirror's link explicitly (`C` on SLCAN, bounded wait) however identification ends:
+/// normally, on an error, or unwinding.
 impl Drop for LinkedPlant {
     fn drop(&mut self) {
+        self.end();
         let mirror = &mut self.mirror;
         let _ = self.runtime.block_on(mirror.close());
     }
@@ -100,8 +105,13 @@ impl PlantLink for LinkedPlant {
                 Ok(angles)
             }
             Err(error) => {
+                // An early stop: zero best effort, no answer awaited (the link may be gone).
                 let mirror = &mut self.mirror;
-                self.runtime.block_on(mirror.command_zero(k));
+                let zero_commanded = self.runtime.block_on(mirror.command_zero(k));
+                self.ended.get_or_insert(CoilsAtEnd {
+                    zero_commanded,
+                    acknowledged: false,
+                });
                 Err(LinkError {
                     message: error.to_string(),
                 })
@@ -111,5 +121,16 @@ impl PlantLink for LinkedPlant {
 
     fn period_s(&self) -> f64 {
         self.period_s
+    }
+
+    /// CoilCommand(0) and the controller's Status(ready) after the last exchange, and the
+    /// node's Status(ready) awaited as their acknowledgement ([`MirrorLink::end_session`]);
+    /// once per session.
+    fn end(&mut self) -> Option<CoilsAtEnd> {
+        if self.ended.is_none() {
+            let (mirror, periods) = (&mut self.mirror, self.next_period);
+            self.ended = Some(self.runtime.block_on(mirror.end_session(periods)));
+        }
+        self.ended
     }
 }

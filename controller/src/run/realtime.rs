@@ -91,7 +91,7 @@ pub async fn run(
         let (j, angles) = match reading {
             Ok(reading) => reading,
             Err(error) => {
-                mirror.command_zero(expected).await;
+                record.coils_at_end.zero_commanded = mirror.command_zero(expected).await;
                 record.stopped_by = Some(error);
                 break;
             }
@@ -125,19 +125,26 @@ pub async fn run(
         record.push_reading(trajectory, j, angles);
         last_angles = angles;
         let next = j + 1;
-        let command = controller.step(trajectory.reference_rad(next as f64 * period_s), angles);
-        let send_deadline = tokio::time::Instant::now() + mirror.total_allowance();
-        let frame = coil_command_frame(next, command, (next + 1) as f64 * period_s);
-        let sent = match frame {
-            Ok(frame) => {
-                mirror
-                    .send_within(next, &[frame], send_deadline, interrupt)
-                    .await
+        let sent = if next == periods {
+            // The last reading is answered by the end: the zero command and the controller's
+            // Status, which the node acknowledges below.
+            let end = mirror.send_end(periods).await;
+            record.coils_at_end.zero_commanded = end.is_ok();
+            end
+        } else {
+            let command = controller.step(trajectory.reference_rad(next as f64 * period_s), angles);
+            let send_deadline = tokio::time::Instant::now() + mirror.total_allowance();
+            match coil_command_frame(next, command, (next + 1) as f64 * period_s) {
+                Ok(frame) => {
+                    mirror
+                        .send_within(next, &[frame], send_deadline, interrupt)
+                        .await
+                }
+                Err(error) => Err(error),
             }
-            Err(error) => Err(error),
         };
         if let Err(error) = sent {
-            mirror.command_zero(next).await;
+            record.coils_at_end.zero_commanded = mirror.command_zero(next).await;
             record.stopped_by = Some(error);
             break;
         }
@@ -153,6 +160,14 @@ pub async fn run(
         if j % 256 == 0 {
             progress.set(j);
         }
+    }
+    if record.stopped_by.is_none() {
+        if !record.coils_at_end.zero_commanded {
+            // The last readings never came (passed over): the end goes out now.
+            record.coils_at_end.zero_commanded = mirror.send_end(periods).await.is_ok();
+        }
+        record.coils_at_end.acknowledged =
+            record.coils_at_end.zero_commanded && mirror.await_end(periods).await;
     }
     record.saturated_periods = controller.saturated_periods();
     record.controller_timing = Some(ControllerTiming {

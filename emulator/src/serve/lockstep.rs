@@ -166,7 +166,10 @@ pub async fn run(
 /// the last period, and finishes. This is how the run ends on a bus, where no hang-up comes;
 /// on a serial line the node then waits for the hang-up, as closing the line first would drop
 /// what the controller has not read yet.
-async fn end_of_run(ready: &CanFrame, links: &mut ServeLinks) -> anyhow::Result<LoopReport> {
+pub(super) async fn end_of_run(
+    ready: &CanFrame,
+    links: &mut ServeLinks,
+) -> anyhow::Result<LoopReport> {
     links.fsm.send(ready).await?;
     if links.fsm.is_slcan() {
         linger(links).await?;

@@ -101,6 +101,7 @@ impl<'a> LockstepNode<'a> {
             Message::Status(status)
                 if status.node == NodeId::Controller && status.state != NodeState::Running =>
             {
+                self.node.on_end_of_run();
                 let k = self.node.next_period();
                 let period_s = self.node.plant().period_s();
                 Ok(NodeReply::EndOfRun(status_frame(

@@ -253,6 +253,14 @@ impl MirrorNode {
         self.on_link_timeout(0)
     }
 
+    /// The controller ended the run: a running node is ready again (a faulted one stays in
+    /// fault), holding the command it has (the controller's last one is its zero).
+    pub fn on_end_of_run(&mut self) {
+        if self.state != NodeState::Fault {
+            self.state = NodeState::Ready;
+        }
+    }
+
     fn enter_fault(&mut self) {
         self.state = NodeState::Fault;
         self.command_a = ActuatorPair::default();

@@ -124,7 +124,7 @@ pub enum RunEnd {
     HostClosedChannel,
     /// The host closed the line (or a bus link went away).
     HangUp,
-    /// Lockstep: the controller's Status frame ended the run.
+    /// The controller's Status frame ended the run (after its zero command).
     ControllerStatus,
     /// Real time: the requested duration ran out.
     Duration,

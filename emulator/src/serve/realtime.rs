@@ -3,7 +3,9 @@
 //! newest coil command it has (a command that arrived late still counts for the next period),
 //! sends Sync(k) and AngleReading(k), then the sensor's samples and, at the heartbeat rate, a
 //! Status frame. The controller answers each reading with CoilCommand(k) before the next
-//! period. Timer resolution in an OS is coarse, so the loop waits for each period start by
+//! period. The controller's Status frame in a state other than running (its end of the run,
+//! after the zero command that answers the last reading) ends the run: the node answers with
+//! Status(ready) as its last frame, holding the zero. Timer resolution in an OS is coarse, so the loop waits for each period start by
 //! yielding to the I/O driver and re-reading the clock (received frames are handled meanwhile).
 //!
 //! With busy-polling ([`ServeConfig::realtime`]) the wait spins on non-blocking reads of the
@@ -27,9 +29,9 @@ use std::time::{Duration, Instant};
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::link::LinkError;
 use scanhil_protocol::loop_timing::{MissedDeadline, PeriodRecorder};
-use scanhil_protocol::message::{Message, MessageError};
+use scanhil_protocol::message::{Message, MessageError, NodeId, NodeState};
 
-use super::lockstep::host_stopped_reading;
+use super::lockstep::{end_of_run, host_stopped_reading};
 use super::lockstep_node::{
     angle_frame, fault_frame, last_frames, periods_per_heartbeat, status_frame,
 };
@@ -72,11 +74,7 @@ pub async fn run(
     // How late the previous tick's reading went out after its period start (`None`: dropped).
     let mut previous_reading_late_s: Option<f64> = None;
     let busy_poll = config.realtime.busy_poll;
-    let mut last_command_period: Option<u64> = None;
-    // When the oldest reading the host has not answered yet went out (wall clock): the
-    // host's silence is measured from there, so a node whose sends stretch under a full line
-    // (each tick then waits out the send allowance) still notices a frozen host.
-    let mut unanswered_since: Option<Instant> = None;
+    let mut host = HostHeard::default();
     let silence_allowance = period.saturating_mul(config.watchdog_periods);
     let mut dropped_periods = 0u64;
     // Since when the line has taken no byte while frames waited (the host is not reading).
@@ -97,23 +95,44 @@ pub async fn run(
     let mut link_error: Option<anyhow::Error> = None;
     'ticks: loop {
         let k = node.next_period();
-        if total_periods.is_some_and(|n| k >= n) {
+        if total_periods.is_some_and(|n| k >= n) && host.last_command_period.is_some() {
+            // The duration ran out: no more periods. A commanding host's end of the run (its
+            // zero command, then its Status) is still taken, within the watchdog's allowance.
+            let waited = tokio::time::timeout(silence_allowance, async {
+                while !host.ended {
+                    let frame = links.fsm.recv().await?;
+                    host.on_frame(node, &frame, k);
+                }
+                Ok::<_, LinkError>(())
+            })
+            .await;
+            if let Ok(Err(err)) = waited {
+                link_error = Some(err.into());
+            }
+        }
+        if host.ended {
+            // The controller ended the run (after its zero command, which the node took
+            // first): the node answers Status(ready) as its last frame.
+            node.on_end_of_run();
+            let ready = status_frame(node.state(), k, node.plant().period_s())?;
+            match end_of_run(&ready, links).await {
+                Ok(report) => (outcome, ended_by) = (report.outcome, report.ended_by),
+                Err(err) => link_error = Some(err),
+            }
+            break 'ticks;
+        }
+        if link_error.is_some() || total_periods.is_some_and(|n| k >= n) {
             break;
         }
         let deadline = start + period.saturating_mul(k as u32);
-        let served = serve_until(
-            links,
-            node,
-            k,
-            deadline,
-            busy_poll,
-            &mut last_command_period,
-            &mut unanswered_since,
-        )
-        .await;
+        let served = serve_until(links, node, k, deadline, busy_poll, &mut host).await;
         if let Err(err) = served {
             link_error = Some(err.into());
             break 'ticks;
+        }
+        if host.ended {
+            // The end came before the duration ran out: answered at the next tick's start.
+            continue;
         }
         let now = Instant::now();
         if let Some(previous) = last_tick {
@@ -128,10 +147,13 @@ pub async fn run(
         // The watchdog: armed by the first command; fires after `watchdog_periods` ticks
         // without one, or when a reading has waited that many periods of wall time for its
         // answer.
-        let silent_ticks =
-            last_command_period.is_some_and(|last| k - last > u64::from(config.watchdog_periods));
-        let silent_wall = last_command_period.is_some()
-            && unanswered_since.is_some_and(|since| now.duration_since(since) > silence_allowance);
+        let silent_ticks = host
+            .last_command_period
+            .is_some_and(|last| k - last > u64::from(config.watchdog_periods));
+        let silent_wall = host.last_command_period.is_some()
+            && host
+                .unanswered_since
+                .is_some_and(|since| now.duration_since(since) > silence_allowance);
         let not_reading =
             unsent_since.is_some_and(|since| now.duration_since(since) > silence_allowance);
         if silent_ticks || silent_wall || not_reading {
@@ -159,7 +181,7 @@ pub async fn run(
             error = Some(with_wind_down(reason, wound_down));
             break;
         }
-        unanswered_since.get_or_insert(now);
+        host.unanswered_since.get_or_insert(now);
         let mut frames = vec![Message::Sync { step: k as u32 }.encode()?];
         let mut samples = Vec::new();
         let stale_before = node.counters().stale_periods;
@@ -256,12 +278,11 @@ async fn serve_until(
     k: u64,
     deadline: Instant,
     busy_poll: bool,
-    last_command_period: &mut Option<u64>,
-    unanswered_since: &mut Option<Instant>,
+    host: &mut HostHeard,
 ) -> Result<(), LinkError> {
-    while Instant::now() < deadline {
+    while Instant::now() < deadline && !host.ended {
         if busy_poll {
-            take_queued(links, node, k, last_command_period, unanswered_since)?;
+            take_queued(links, node, k, host)?;
             std::hint::spin_loop();
         } else {
             let received = tokio::select! {
@@ -269,44 +290,61 @@ async fn serve_until(
                 () = tokio::task::yield_now() => None,
             };
             if let Some(frame) = received {
-                on_frame(node, &frame?, k, last_command_period, unanswered_since);
+                host.on_frame(node, &frame?, k);
             }
         }
     }
-    take_queued(links, node, k, last_command_period, unanswered_since)
+    take_queued(links, node, k, host)
 }
 
-/// Handles every frame the host has queued, without waiting.
+/// Handles every frame the host has queued, without waiting (none after the end of the run).
 fn take_queued(
     links: &mut ServeLinks,
     node: &mut MirrorNode,
     k: u64,
-    last_command_period: &mut Option<u64>,
-    unanswered_since: &mut Option<Instant>,
+    host: &mut HostHeard,
 ) -> Result<(), LinkError> {
-    while let Some(frame) = links.fsm.try_recv()? {
-        on_frame(node, &frame, k, last_command_period, unanswered_since);
+    while !host.ended {
+        let Some(frame) = links.fsm.try_recv()? else {
+            break;
+        };
+        host.on_frame(node, &frame, k);
     }
     Ok(())
 }
 
-/// Handles one frame from the host during period `k`: a coil command is applied (and marks
-/// the period the host was last heard), a malformed loop frame is counted, others ignored.
-/// A coil command also answers the oldest unanswered reading.
-fn on_frame(
-    node: &mut MirrorNode,
-    frame: &CanFrame,
-    k: u64,
-    last_command_period: &mut Option<u64>,
-    unanswered_since: &mut Option<Instant>,
-) {
-    match Message::decode(frame) {
-        Ok(Message::CoilCommand(command)) => {
-            *last_command_period = Some(k);
-            *unanswered_since = None;
-            node.on_command(command.seq, command.amps());
+/// What the node has heard from the host so far.
+#[derive(Debug, Default)]
+struct HostHeard {
+    /// The period of the newest coil command (`None`: none yet; the watchdog is not armed).
+    last_command_period: Option<u64>,
+    /// When the oldest reading the host has not answered yet went out (wall clock): the
+    /// host's silence is measured from there, so a node whose sends stretch under a full line
+    /// (each tick then waits out the send allowance) still notices a frozen host.
+    unanswered_since: Option<Instant>,
+    /// The controller's Status frame in a state other than running ended the run.
+    ended: bool,
+}
+
+impl HostHeard {
+    /// Handles one frame from the host during period `k`: a coil command is applied (and
+    /// marks the period the host was last heard; it also answers the oldest unanswered
+    /// reading), the controller's Status frame in a state other than running ends the run,
+    /// a malformed loop frame is counted, others are ignored.
+    fn on_frame(&mut self, node: &mut MirrorNode, frame: &CanFrame, k: u64) {
+        match Message::decode(frame) {
+            Ok(Message::CoilCommand(command)) => {
+                self.last_command_period = Some(k);
+                self.unanswered_since = None;
+                node.on_command(command.seq, command.amps());
+            }
+            Ok(Message::Status(status))
+                if status.node == NodeId::Controller && status.state != NodeState::Running =>
+            {
+                self.ended = true;
+            }
+            Ok(_) | Err(MessageError::UnknownId(_)) => {}
+            Err(_) => node.on_malformed_frame(),
         }
-        Ok(_) | Err(MessageError::UnknownId(_)) => {}
-        Err(_) => node.on_malformed_frame(),
     }
 }
