@@ -5,7 +5,7 @@
 use std::time::Duration;
 
 use scanhil_protocol::can::CanFrame;
-use scanhil_protocol::link::{Arrival, CanLink, LinkError, VirtualClock};
+use scanhil_protocol::link::{ArrivalSource, CanLink, LinkError, VirtualClock};
 use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
 pub use super::host_inbox::{HostInbox, MirrorLinkCounters, NodeEvent};
@@ -277,11 +277,15 @@ impl MirrorLink {
         &mut self.port
     }
 
-    /// When the frame received last arrived: read, and on the bus as the kernel (SocketCAN)
-    /// or the adapter (SLCAN with timestamps) stamped it.
+    /// When the frame received last was on the bus, as the kernel (SocketCAN) or the adapter
+    /// (SLCAN with timestamps) stamped it; without a stamp, now (the loop takes a frame as
+    /// soon as it is read, and frames read in one chunk share their read time).
     #[must_use]
-    pub fn last_arrival(&self) -> Option<Arrival> {
-        self.port.last_arrival()
+    pub fn last_arrival(&self) -> tokio::time::Instant {
+        match self.port.last_arrival() {
+            Some(arrival) if arrival.source != ArrivalSource::Read => arrival.on_bus_at,
+            _ => tokio::time::Instant::now(),
+        }
     }
 
     /// The node events so far (see [`NodeEvent`]: faults and changes of state).
@@ -523,10 +527,7 @@ impl MirrorLink {
         frame: &CanFrame,
         t_s: f64,
     ) -> Result<Option<(u16, SensingPair)>, LoopError> {
-        let arrived = self
-            .port
-            .last_arrival()
-            .map_or_else(tokio::time::Instant::now, |arrival| arrival.on_bus_at);
+        let arrived = self.last_arrival();
         self.inbox.classify(frame, t_s, arrived)
     }
 }

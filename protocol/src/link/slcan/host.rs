@@ -212,9 +212,8 @@ impl SlcanPort {
             Some(false) => Duration::ZERO,
             _ => RAW_LINE_REPLY_TIMEOUT,
         };
-        let answer = self.exchange(text, label, true, wait).await?;
-        self.flush().await?;
-        Ok(answer)
+        // What a zero wait leaves unwritten goes out with the next write.
+        self.exchange(text, label, true, wait).await
     }
 
     /// The host's state, or a protocol error saying a device end cannot `what`.
