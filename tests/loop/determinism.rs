@@ -26,7 +26,8 @@ fn the_same_seed_gives_bit_identical_recordings_and_reports() {
         let mut report = report(runs[i].path());
         let link = report["links"]["mirror_link"]["link"].take();
         assert!(
-            link.as_str().is_some_and(|uri| uri.starts_with("slcan:/dev/")),
+            link.as_str()
+                .is_some_and(|uri| uri.starts_with("slcan:/dev/")),
             "{link}"
         );
         let run_time_s = report["run_time_s"].take();
