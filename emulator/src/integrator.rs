@@ -231,8 +231,10 @@ impl Stepper {
         self.substeps
     }
 
-    /// Advances `x` by one control period with the input `u` held.
-    pub fn step(&mut self, x: &mut [f64], u: [f64; INPUTS]) {
+    /// Advances `x` by one control period with the coil commands `u` held (the constant
+    /// input of [`DriveModel`] is 1).
+    pub fn step(&mut self, x: &mut [f64], u: [f64; 2]) {
+        let u = [u[0], u[1], 1.0];
         for _ in 0..self.substeps {
             match self.method {
                 Method::ExactZoh | Method::Trapezoid => self.linear_map(x, u),
@@ -273,11 +275,12 @@ impl Stepper {
     }
 }
 
-/// `out = M x + N u` with row-major `M` (n x n) and `N` (n x 2).
+/// `out = M x + N u` with row-major `M` (n x n) and `N` (n x [`INPUTS`]).
 fn derivative(m: &[f64], nmat: &[f64], n: usize, x: &[f64], u: [f64; INPUTS], out: &mut [f64]) {
     for (r, o) in out.iter_mut().enumerate() {
         let row = &m[r * n..(r + 1) * n];
-        let mut acc = nmat[r * INPUTS] * u[0] + nmat[r * INPUTS + 1] * u[1];
+        let inputs = &nmat[r * INPUTS..(r + 1) * INPUTS];
+        let mut acc: f64 = inputs.iter().zip(u).map(|(b, u)| b * u).sum();
         for (mi, xi) in row.iter().zip(x) {
             acc += mi * xi;
         }
@@ -305,6 +308,14 @@ pub fn check_stability(
     method: Method,
 ) -> Result<(), (f64, f64, f64)> {
     let (phi, _) = method.step_maps(model, period_s / f64::from(substeps));
+    // A state whose derivative is zero (a saturated amplifier's frozen PI integral) is held
+    // exactly: the map is block triangular with a 1 for it, which cannot grow; leaving it out
+    // keeps the eigenvalue solver's rounding on that 1 (1e-12 on a stiff map) from posing
+    // as growth.
+    let moving: Vec<usize> = (0..model.states())
+        .filter(|&r| model.a.row(r).iter().any(|&a| a != 0.0))
+        .collect();
+    let phi = phi.select_rows(&moving).select_columns(&moving);
     let (re, im, radius) = spectral_radius(&phi);
     let growth = radius.powf(f64::from(substeps));
     if growth.is_finite() && growth <= 1.0 + GROWTH_TOLERANCE {
