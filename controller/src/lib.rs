@@ -37,6 +37,7 @@
 //!   progressive imaging.
 
 pub mod accuracy;
+pub mod closed_loop_figures;
 pub mod continuous;
 pub mod design;
 pub mod discretise;
