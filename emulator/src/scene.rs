@@ -103,6 +103,22 @@ impl Part {
         }
     }
 
+    /// Whether the part is a block of the linear drive model ([`crate::drive_model`]), the
+    /// dynamics the integrators step.
+    #[must_use]
+    pub fn is_linear_drive(self) -> bool {
+        matches!(
+            self,
+            Part::Axes
+                | Part::SecondMode
+                | Part::CrossTalk
+                | Part::CrossTalkPickup
+                | Part::Amplifier
+                | Part::CurrentLoop
+                | Part::AngleSensorBandwidth
+        )
+    }
+
     /// The part this one needs, if any.
     #[must_use]
     pub fn requires(self) -> Option<Part> {

@@ -90,19 +90,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     };
     let report = Report {
         plant: name,
-        active_parts: [
-            Part::Axes,
-            Part::SecondMode,
-            Part::CrossTalk,
-            Part::CrossTalkPickup,
-            Part::Amplifier,
-            Part::CurrentLoop,
-            Part::AngleSensorBandwidth,
-        ]
-        .into_iter()
-        .filter(|p| scene.has(*p))
-        .map(Part::name)
-        .collect(),
+        active_parts: scene
+            .active_parts()
+            .into_iter()
+            .filter(|p| p.is_linear_drive())
+            .map(Part::name)
+            .collect(),
         period_s: setup.period_s,
         duration_s: args.duration_s,
         drive: format!(
