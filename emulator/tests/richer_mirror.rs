@@ -376,3 +376,98 @@ fn a_second_mode_and_a_sensor_filter_start_at_rest_at_the_initial_angle() {
     let plant = Plant::from_scene(&s).unwrap();
     assert!((plant.true_angles_rad().alpha - 0.01).abs() < 1e-15);
 }
+
+#[test]
+fn each_richer_value_is_refused_with_its_field_named() {
+    use scanhil_emulator::cross_talk::{CrossTalkConfig, Pickup};
+    use scanhil_emulator::scene::SceneError;
+    let refused = |parts: &str, extra: &str| -> String {
+        let json = format!(r#"{{"name": "rich", "parts": [{parts}] {extra}}}"#);
+        match Scene::from_json_str(&json, Path::new("rich.json")) {
+            Err(SceneError::Invalid { field, .. }) => field,
+            other => panic!("{extra}: {other:?}"),
+        }
+    };
+    let sensor = r#""axes", "angle_sensor_bandwidth""#;
+    for (extra, field) in [
+        (
+            r#", "angle_sensor": {"bandwidth_hz": 0.0}"#,
+            "angle_sensor.bandwidth_hz",
+        ),
+        (
+            r#", "angle_sensor": {"bandwidth_hz": -5.0}"#,
+            "angle_sensor.bandwidth_hz",
+        ),
+        (
+            r#", "angle_sensor": {"nonlinearity_percent": 31.0}"#,
+            "angle_sensor.nonlinearity_percent",
+        ),
+        (
+            r#", "angle_sensor": {"nonlinearity_percent": -31.0}"#,
+            "angle_sensor.nonlinearity_percent",
+        ),
+    ] {
+        assert_eq!(refused(sensor, extra), field, "{extra}");
+    }
+    // The limits themselves pass: 30 % and any bandwidth above zero.
+    for extra in [
+        r#", "angle_sensor": {"nonlinearity_percent": 30.0}"#,
+        r#", "angle_sensor": {"nonlinearity_percent": -30.0, "bandwidth_hz": 1e-3}"#,
+    ] {
+        scene(sensor, extra);
+    }
+    let current_loop = r#""axes", "amplifier", "current_loop""#;
+    for (extra, field) in [
+        (
+            r#", "current_loop": {"coil_inductance_h": 0.0}"#,
+            "current_loop.coil_inductance_h",
+        ),
+        (
+            r#", "current_loop": {"coil_resistance_ohm": -1.0}"#,
+            "current_loop.coil_resistance_ohm",
+        ),
+        (
+            r#", "current_loop": {"supply_v": 10.0, "headroom_v": 10.0}"#,
+            "current_loop.headroom_v",
+        ),
+        (
+            r#", "current_loop": {"headroom_v": -0.5}"#,
+            "current_loop.headroom_v",
+        ),
+        (
+            r#", "current_loop": {"inertia_kg_m2": -1e-6}"#,
+            "current_loop.inertia_kg_m2",
+        ),
+    ] {
+        assert_eq!(refused(current_loop, extra), field, "{extra}");
+    }
+    scene(
+        current_loop,
+        r#", "current_loop": {"headroom_v": 0.0, "inertia_kg_m2": 0.0}"#,
+    );
+    for (extra, field) in [
+        (
+            r#", "mirror": {"second_mode": {"natural_freq_hz": 1200.0, "damping_ratio": 0.0}}"#,
+            "mirror.second_mode.damping_ratio",
+        ),
+        (
+            r#", "mirror": {"beta": {"second_mode": {"natural_freq_hz": -1.0, "damping_ratio": 0.02}}}"#,
+            "mirror.beta.second_mode.natural_freq_hz",
+        ),
+    ] {
+        assert_eq!(refused(r#""axes", "second_mode""#, extra), field, "{extra}");
+    }
+    // A pickup cannot be written non-finite in JSON; the check stands behind the library too.
+    let nan = CrossTalkConfig {
+        pickup_urad_per_a: Pickup {
+            alpha_from_beta: 1.0,
+            beta_from_alpha: f64::NAN,
+        },
+        ..CrossTalkConfig::default()
+    };
+    assert_eq!(
+        nan.validate().unwrap_err().0,
+        "cross_talk.pickup_urad_per_a.beta_from_alpha"
+    );
+    assert!(CrossTalkConfig::default().validate().is_ok());
+}
