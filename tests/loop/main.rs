@@ -46,5 +46,7 @@ mod faults;
 mod realtime_options;
 // Bad values refused or warned about before a run; an OS error said once.
 mod bad_input;
+// Verdicts: runs that did nothing or did not track exit 4 with their reasons.
+mod verdicts;
 // Outputs that cannot be written (a full disk, a directory in the way): the others are.
 mod output_failures;

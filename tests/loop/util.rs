@@ -147,6 +147,33 @@ pub fn assert_success(output: &Output, what: &str) {
     );
 }
 
+/// Asserts that a real-time scan ran every planned period: exit 0, or exit 4 with a failed
+/// verdict whose only reasons are tracking (on a loaded machine a real-time loop over ptys
+/// misses deadlines, the PID acts on stale commands and may not track; the verdict says so,
+/// and the real-time tests check timing figures, not tracking). Returns the report.
+pub fn assert_ran_every_period(output: &Output, dir: &Path) -> serde_json::Value {
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    let report = report(dir);
+    let outcome = &report["outcome"];
+    match output.status.code() {
+        Some(0) => assert_eq!(outcome["verdict"], "complete", "{outcome}"),
+        Some(4) => {
+            assert_eq!(outcome["verdict"], "failed", "{outcome}");
+            let reasons = outcome["reasons"].as_array().expect("reasons");
+            assert!(
+                !reasons.is_empty()
+                    && reasons.iter().all(|reason| reason
+                        .as_str()
+                        .is_some_and(|r| r.starts_with("the loop does not track"))),
+                "only tracking may fail a real-time run that ran every period: {outcome}"
+            );
+        }
+        other => panic!("exit {other:?}, not a run of every period; stderr:\n{stderr}"),
+    }
+    assert_eq!(outcome["stopped_by"], serde_json::Value::Null, "{outcome}");
+    report
+}
+
 /// Reads and parses `report.json` in `dir`.
 pub fn report(dir: &Path) -> serde_json::Value {
     let text = std::fs::read_to_string(dir.join("report.json")).expect("report.json written");
