@@ -9,8 +9,9 @@ OUT holds three output folders of `scanhil scan fixtures/scenarios/vcan-small.js
 
 Checks:
 1. The capture, read by cantools' candump log parser: every line is a frame on vcan0, every frame
-   decodes with the DBC, wall-clock stamps never go back; CoilCommand.Seq, Step.Step and
-   AngleReading.Seq run 0, 1, ..., N-1 (N = the report's periods) without a gap, the Distance
+   decodes with the DBC, wall-clock stamps never go back; Step.Step and AngleReading.Seq run
+   0, 1, ..., N-1 (N = the report's periods) without a gap, CoilCommand.Seq 0, 1, ..., N with the
+   last one the zero (0 A, 0 A) that ends a complete run (coils at zero at every end), the Distance
    frames' IldCounter counts up by one (18 bits) and there is one per sensor sample the emulator
    sent; the last frame is the node's StatusFsm(ready) that ends the run.
 2. The bus carried exactly what the controller recorded in vcan/fsm.log (its candump log of the
@@ -32,8 +33,8 @@ Checks:
      counters, zero when the sensor is on CAN) and emulator.summary.link.frames_sent (the Distance
      frames travel on the mirror's link on CAN, on their own line with ILD), sensor_setup and
      emulator.summary.sensor.commands_answered (the ILD line is configured over its ASCII
-     commands; on CAN there is none), and run_time_s, the
-     one wall-clock field of a lockstep report (timing.controller and timing.emulator are null,
+     commands; on CAN there is none), and the wall-clock fields of a lockstep report: run_time_s
+     and each scene part's measured cost per period (emulator.summary.parts) (timing.controller and timing.emulator are null,
      and are compared as such).
 4. The sensor's data is the same on both of its transports: the (IldRaw, IldCounter) pairs of the
    Distance frames on vcan0 equal the (value, counter) output cycles of pty-ild/sensor.ild, the
@@ -65,10 +66,18 @@ BYTE_IDENTICAL = [
     "profiles.csv",
 ]
 # Report fields that describe or count the transport, per compared folder (JSON paths, prefixes).
+# The wall-clock figures of a lockstep report: run_time_s and each scene part's measured cost
+# per period (emulator.summary.parts, measured before the run).
+WALL_CLOCK_FIELDS = [
+    ("run_time_s",),
+    ("emulator", "summary", "parts", "plant_us_per_period"),
+    ("emulator", "summary", "parts", "bare_us_per_period"),
+    ("emulator", "summary", "parts", "parts", "*", "us_per_period"),
+]
 TRANSPORT_FIELDS = {
-    "pty-can": [("scenario", "links", "fsm"), ("run_time_s",)],
+    "pty-can": [*WALL_CLOCK_FIELDS, ("scenario", "links", "fsm")],
     "pty-ild": [
-        ("run_time_s",),
+        *WALL_CLOCK_FIELDS,
         ("scenario", "links", "fsm"),
         ("scenario", "links", "sensor"),
         ("links", "sensor"),
@@ -126,11 +135,16 @@ def check_capture(out, db, report, summary):
         signals.setdefault(message.name, []).append(decoded)
 
     periods = report["periods"]["planned"]
-    for name, signal, modulus in [("CoilCommand", "Seq", 1 << 16), ("Step", "Step", 1 << 32),
-                                  ("AngleReading", "Seq", 1 << 16)]:
+    # One CoilCommand per period and the final zero of a complete run (coils at zero at every end).
+    for name, signal, modulus, count in [("CoilCommand", "Seq", 1 << 16, periods + 1),
+                                         ("Step", "Step", 1 << 32, periods),
+                                         ("AngleReading", "Seq", 1 << 16, periods)]:
         values = [s[signal] for s in signals.get(name, [])]
-        check(len(values) == periods, f"{len(values)} {name} frames for {periods} periods")
+        check(len(values) == count, f"{len(values)} {name} frames for {periods} periods (expected {count})")
         gapless(values, modulus, f"{name}.{signal}", start=0)
+    final = signals.get("CoilCommand", [{}])[-1]
+    check(final.get("CurrentA") == 0 and final.get("CurrentB") == 0,
+          f"the last CoilCommand on the bus is not the zero of the run's end: {final}")
     distances = [(s["IldRaw"], s["IldCounter"]) for s in signals.get("Distance", [])]
     counters = [counter for _, counter in distances]
     gapless(counters, 1 << 18, "Distance.IldCounter")
@@ -188,6 +202,11 @@ def differences(a, b, path=()):
         yield path
 
 
+def within(path, allowed):
+    """Whether a JSON path lies under an allowed prefix ("*" matches any key or index)."""
+    return len(path) >= len(allowed) and all(a in ("*", p) for p, a in zip(path, allowed))
+
+
 def check_run(name, report):
     summary = report["emulator"]["summary"] if report.get("emulator") else None
     check(report["outcome"].get("complete") is True, f"{name}: the scan did not complete: {report['outcome']}")
@@ -222,7 +241,7 @@ def main():
             check(len(first) > 0, f"vcan/{file} is empty")
             check(first == (out / other / file).read_bytes(), f"{file} differs between vcan and {other}")
         found = list(differences(reports["vcan"], reports[other]))
-        unexpected = [p for p in found if not any(p[:len(a)] == a for a in allowed)]
+        unexpected = [p for p in found if not any(within(p, a) for a in allowed)]
         check(not unexpected, f"report.json: vcan and {other} differ at {['/'.join(map(str, p)) for p in unexpected]}")
         print(f"vcan_loop_check: vcan vs {other}: {', '.join(BYTE_IDENTICAL)} identical; report.json identical "
               f"but for {sorted({'/'.join(map(str, p)) for p in found})}")
