@@ -36,9 +36,14 @@ Checks:
      commands; on CAN there is none), and the wall-clock fields of a lockstep report: run_time_s
      and each scene part's measured cost per period (emulator.summary.parts) (timing.controller and timing.emulator are null,
      and are compared as such).
-4. The sensor's data is the same on both of its transports: the (IldRaw, IldCounter) pairs of the
-   Distance frames on vcan0 equal the (value, counter) output cycles of pty-ild/sensor.ild, the
-   raw ILD RS422 stream, as `scanhil decode --format ild` reads it.
+4. The sensor's data is the same on both of its transports: the output cycles of pty-ild/sensor.ild,
+   the raw ILD RS422 stream as `scanhil decode --format ild` reads it, carry the values the
+   pty-ild report's sensor_setup.output_values names (GETOUTINFO_RS422's order): their DIST1
+   values equal the IldRaw of the Distance frames on vcan0, and their COUNTER values (when the
+   rig streams the counter) the frames' IldCounter. The paper's bench streams the distance alone
+   (distance and counter do not fit 691 200 baud at 20 kHz), so the host counts the cycles and
+   places the first at the counter the emulator declares: samples.sensor_clock.counter_offset
+   and emulator.summary.sensor.baud (the ILD line's) are transport fields there too.
 5. Both runs ended cleanly: complete, every period done, no sequence gap or malformed frame seen by
    the controller, the emulator finished by itself (exit status 0, not killed) on every transport.
 
@@ -84,6 +89,8 @@ TRANSPORT_FIELDS = {
         ("sensor_setup",),
         ("emulator", "summary", "link", "frames_sent"),
         ("emulator", "summary", "sensor", "commands_answered"),
+        ("emulator", "summary", "sensor", "baud"),
+        ("samples", "sensor_clock", "counter_offset"),
     ],
 }
 CANDUMP_LINE = re.compile(r"^\((\d+\.\d+)\) (\S+) ([0-9A-F]{3}|[0-9A-F]{8})#([0-9A-F]*)$")
@@ -176,18 +183,27 @@ def check_capture(out, db, report, summary):
     return distances
 
 
-def check_ild_stream(scanhil, capture, distances):
-    """The ILD stream's (value, counter) cycles against the Distance frames' (IldRaw, IldCounter)."""
+def check_ild_stream(scanhil, capture, distances, output_values):
+    """The ILD stream's cycles (laid out as output_values says) against the Distance frames'
+    (IldRaw, IldCounter): DIST1 against IldRaw, COUNTER (when streamed) against IldCounter."""
     result = subprocess.run([scanhil, "decode", str(capture), "--format", "ild"],
                             capture_output=True, text=True, check=False)
     if not check(result.returncode == 0, f"scanhil decode --format ild {capture}: {result.stderr.strip()}"):
         return
     words = [json.loads(line) for line in result.stdout.splitlines()]
-    check(all(w["index"] == i % 2 for i, w in enumerate(words)) and len(words) % 2 == 0,
-          f"{capture}: the cycles are not (value, counter) pairs")
-    cycles = [(words[i]["raw"], words[i + 1]["raw"]) for i in range(0, len(words) - 1, 2)]
-    check(cycles == distances, f"{capture}: {len(cycles)} ILD cycles differ from the {len(distances)} Distance frames on vcan0")
-    print(f"vcan_loop_check: sensor: the {len(cycles)} (value, counter) cycles of the ILD stream equal the Distance frames on vcan0")
+    per_cycle = len(output_values)
+    laid_out = (per_cycle > 0 and "DIST1" in output_values and len(words) % per_cycle == 0
+                and all(w["index"] == i % per_cycle for i, w in enumerate(words)))
+    if not check(laid_out, f"{capture}: the cycles are not {' '.join(output_values)} each"):
+        return
+    cycles = [words[i:i + per_cycle] for i in range(0, len(words), per_cycle)]
+    dist = output_values.index("DIST1")
+    counter = output_values.index("COUNTER") if "COUNTER" in output_values else None
+    streamed = [(c[dist]["raw"], c[counter]["raw"] if counter is not None else None) for c in cycles]
+    expected = [(raw, count if counter is not None else None) for raw, count in distances]
+    what = "(value, counter)" if counter is not None else "distance (no counter)"
+    check(streamed == expected, f"{capture}: {len(cycles)} {what} ILD cycles differ from the {len(distances)} Distance frames on vcan0")
+    print(f"vcan_loop_check: sensor: the {len(cycles)} {what} cycles of the ILD stream equal the Distance frames on vcan0")
 
 
 def differences(a, b, path=()):
@@ -231,7 +247,8 @@ def main():
     summaries = {name: check_run(name, report) for name, report in reports.items()}
 
     distances = check_capture(out, db, reports["vcan"], summaries["vcan"])
-    check_ild_stream(scanhil, out / "pty-ild" / "sensor.ild", distances)
+    output_values = (reports["pty-ild"].get("sensor_setup") or {}).get("output_values") or []
+    check_ild_stream(scanhil, out / "pty-ild" / "sensor.ild", distances, output_values)
 
     check((out / "vcan" / "fsm.log").read_bytes() == (out / "pty-can" / "fsm.log").read_bytes(),
           "fsm.log differs between socketcan:vcan0 and the pty link")
