@@ -9,6 +9,9 @@ mod deaf_node;
 
 // The host's SLCAN `C` ends the emulator's run, in lockstep and in real time.
 mod slcan_close;
+// SLCAN adapters as their firmware behaves (silent, CANable, Lawicel with and without
+// timestamps): conformance passes through each, a scan reports the adapter's stamps.
+mod slcan_adapters;
 // The emulator's watchdog: a silent controller gets zero coil currents and a LinkTimeout fault.
 mod emulator_watchdog;
 // Peers that stop reading: zero coils and a reason, never a blocked write.
