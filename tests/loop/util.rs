@@ -77,7 +77,7 @@ pub fn emulator() -> PathBuf {
 
 /// The longest any single `scanhil` run in these tests may take before it is killed and the
 /// test fails (a hang must never stall CI).
-const RUN_LIMIT: std::time::Duration = std::time::Duration::from_secs(180);
+pub const RUN_LIMIT: std::time::Duration = std::time::Duration::from_secs(180);
 
 /// The arguments of a real-time scan of `test-loop-small` for `duration_s` into `out`, then
 /// `extra`. Its watchdog of 10 000 periods (0.5 s of ticks on the emulator's side) is far above

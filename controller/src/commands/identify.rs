@@ -238,7 +238,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         Some(path) => {
             std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))?
         }
-        None => println!("{text}"),
+        None => scanhil_protocol::outln!("{text}")?,
     }
     if let Some(path) = &args.plot {
         plot(path, &points, &*model).with_context(|| format!("writing {}", path.display()))?;

@@ -117,7 +117,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             &std::fs::read_to_string(&report_path)
                 .with_context(|| format!("reading back {}", report_path.display()))?,
         )?;
-        println!("{}", summary_text(&report, &out_dir));
+        scanhil_protocol::outln!("{}", summary_text(&report, &out_dir))?;
     }
     if let ScanEnd::Stopped(why) = &result.end {
         eprintln!("scanhil: scan stopped early: {why}");

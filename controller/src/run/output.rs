@@ -292,8 +292,8 @@ pub fn write(
     });
     let text = serde_json::to_string_pretty(&report).context("formatting report.json")?;
     let path = out_dir.join(REPORT);
-    let written =
-        std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()));
+    let written = scanhil_protocol::whole_file::write_file(&path, text + "\n")
+        .with_context(|| format!("writing {}", path.display()));
     failed.attempt(REPORT, written);
     Ok(ScanResult {
         end,
@@ -553,7 +553,12 @@ fn write_tracking_plot(
             series: with_marker(windows),
         });
     }
-    draw_charts(&out_dir.join(TRACKING_SVG), &charts).context("writing tracking.svg")
+    scanhil_protocol::whole_file::write_whole(
+        &out_dir.join(TRACKING_SVG),
+        |path| draw_charts(path, &charts).map_err(anyhow::Error::from),
+        anyhow::Error::from,
+    )
+    .context("writing tracking.svg")
 }
 
 #[cfg(test)]

@@ -89,30 +89,30 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 .iter()
                 .filter(|o| matches!(o, VariantOutcome::Failed(_)))
                 .count();
-            summarise(&rows, &out);
-            println!(
+            summarise(&rows, &out)?;
+            scanhil_protocol::outln!(
                 "{} variants on {jobs} threads in {:.2} s, {failed} failed",
                 rows.len(),
                 started.elapsed().as_secs_f64()
-            );
+            )?;
             Ok(exit_code(&rows))
         }
         Command::Plan { study, out } => {
             let study = Study::load(&study)?;
             for scenario in study.write_variants(&out)? {
-                println!("{}", scenario.display());
+                scanhil_protocol::outln!("{}", scenario.display())?;
             }
             Ok(ExitCode::SUCCESS)
         }
         Command::Collect { study, out } => {
             let rows = collect(&Study::load(&study)?, &out)?;
-            summarise(&rows, &out);
+            summarise(&rows, &out)?;
             Ok(exit_code(&rows))
         }
     }
 }
 
-fn summarise(rows: &[Row], out: &std::path::Path) {
+fn summarise(rows: &[Row], out: &std::path::Path) -> std::io::Result<()> {
     for row in rows.iter().filter(|r| r.verdict != Some(Status::Complete)) {
         eprintln!(
             "variant {} {}: {}",
@@ -121,11 +121,11 @@ fn summarise(rows: &[Row], out: &std::path::Path) {
             row.problem.as_deref().unwrap_or("incomplete")
         );
     }
-    println!(
+    scanhil_protocol::outln!(
         "wrote {} and {}",
         out.join("study.csv").display(),
         out.join("study.json").display()
-    );
+    )
 }
 
 /// 0 when every variant is complete; 3 when one stopped early or has no report; else 4 when

@@ -176,7 +176,7 @@ pub fn collect(study: &Study, out_dir: &Path) -> anyhow::Result<Vec<Row>> {
         "scenario": study.scenario.display().to_string(),
         "rows": rows,
     });
-    std::fs::write(
+    scanhil_protocol::whole_file::write_file(
         &json_path,
         serde_json::to_string_pretty(&json).context("formatting study.json")? + "\n",
     )
@@ -184,7 +184,8 @@ pub fn collect(study: &Study, out_dir: &Path) -> anyhow::Result<Vec<Row>> {
     let csv_path = out_dir.join("study.csv");
     let mut csv = Vec::new();
     write_csv(&mut csv, &study.keys(), &rows).context("formatting study.csv")?;
-    std::fs::write(&csv_path, csv).with_context(|| format!("writing {}", csv_path.display()))?;
+    scanhil_protocol::whole_file::write_file(&csv_path, csv)
+        .with_context(|| format!("writing {}", csv_path.display()))?;
     Ok(rows)
 }
 
