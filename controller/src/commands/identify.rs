@@ -7,6 +7,7 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use nalgebra::Complex;
+use scanhil_controller::closed_loop_figures::closed_loop_figures;
 use scanhil_controller::identify::{
     ResponsePoint, SteppedSine, SweptSinePlan, Target, identify, identify_swept,
 };
@@ -219,6 +220,24 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             })
         })
         .collect();
+    // Closed loop: the loop's figures from the measured T beside the model's on the same grid.
+    let loop_figures = (args.mode == Mode::ClosedLoop).then(|| {
+        let measured: Vec<(f64, Complex<f64>)> = points
+            .iter()
+            .map(|p| {
+                (
+                    p.f_hz,
+                    Complex::from_polar(p.magnitude, p.phase_deg.to_radians()),
+                )
+            })
+            .collect();
+        let modelled: Vec<(f64, Complex<f64>)> =
+            points.iter().map(|p| (p.f_hz, model(p.f_hz))).collect();
+        serde_json::json!({
+            "measured": closed_loop_figures(&measured),
+            "model": closed_loop_figures(&modelled),
+        })
+    });
     let json = serde_json::json!({
         "plant": args
             .fsm
@@ -231,6 +250,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "seed": args.seed,
         "model": if args.mode == Mode::OpenLoop { "z^-1 ZOH(eq. 4)" } else { "nominal T = CP/(1+CP)" },
         "points": rows,
+        "loop": loop_figures,
         "coils_at_end": coils_at_end,
     });
     let text = serde_json::to_string_pretty(&json)?;
