@@ -17,6 +17,8 @@ mod peers;
 mod scan_result;
 // A dual-tone `scanhil design` made for the 1 Mbit/s bus's rate scans the Duplo stud.
 mod designed_controller;
+// identify --fit against a mirror that is not the paper's: parameters, refit, the twin scene.
+mod fitted_twin;
 // Lockstep determinism: the same seed twice gives bit-identical recordings and reports.
 mod determinism;
 // The sensor's samples on CAN or on the ILD stream: the same scan, the last period included.
