@@ -38,9 +38,12 @@
 //!   lockstep and real-time loops, pairing distances with angles, the output folder.
 //! - [`imaging`]: reconstruction, recordings, PLY, gridding, filling, RANSAC, feature height,
 //!   progressive imaging.
+//! - [`decode`]: candump logs, SLCAN and ILD byte streams decoded into JSON lines
+//!   (`scanhil decode`).
 
 pub mod accuracy;
 pub mod continuous;
+pub mod decode;
 pub mod design;
 pub mod discretise;
 pub mod dual_tone;

@@ -96,7 +96,7 @@ fn a_negative_number_is_a_value_for_every_numeric_flag() {
     );
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(json["figures"]["kind"], "lissajous");
-    // An override that cannot run reaches the scenario's validation, which names the field.
+    // An override that cannot run reaches the scenario's validation, which names the flag.
     let scenario =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenarios/test-loop-small.json");
     let dir = tempfile::tempdir().unwrap();
@@ -111,7 +111,7 @@ fn a_negative_number_is_a_value_for_every_numeric_flag() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
     assert!(
-        stderr.contains("field `duration_s`: -1e0 s must be positive"),
+        stderr.contains("scanhil: error: --duration-s: -1 s is not within (0, 3600] s"),
         "{stderr}"
     );
     // An integer flag says its value is out of range, naming the flag.
@@ -296,13 +296,14 @@ fn conformance_refuses_rates_and_allowances_that_cannot_run_instead_of_panicking
         ("--rate-hz", "nan"),
         ("--rate-hz", "1e300"),
         ("--answer-allowance-s", "0"),
+        ("--answer-allowance-s", "1e300"),
         ("--watchdog-periods", "0"),
     ] {
         let out = scanhil(&["conformance", "--fsm", "slcan:/nonexistent", flag, value]);
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{flag} {value}: {stderr}");
         assert!(
-            stderr.contains(&format!("error: {flag} ")),
+            stderr.contains(&format!("error: {flag}: ")),
             "{flag} {value}: {stderr}"
         );
         assert!(!stderr.contains("panicked"), "{stderr}");

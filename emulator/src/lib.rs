@@ -19,6 +19,7 @@
 //! - [`amplifier`], [`cross_talk`], [`power`], [`angle_sensor`]: the drive and the angle
 //!   sensor.
 //! - [`drive_model`]: the composed linear dynamics of the active parts.
+//! - [`part_cost`]: what each active part costs per control period, measured before a run.
 //! - [`integrator`]: exact ZOH, RK4, trapezoid, Euler, and the stability check.
 //! - [`precision`]: the integrators' error against run time (work-precision study).
 //! - [`serve`]: the mirror and sensor nodes on real links (lockstep and real time).
@@ -31,6 +32,7 @@ pub mod integrator;
 pub mod latency;
 pub mod mirror;
 pub mod optics;
+pub mod part_cost;
 pub mod plant;
 pub mod power;
 pub mod precision;

@@ -39,6 +39,13 @@ fn step_json_reports_parts_and_the_delayed_response_on_the_chosen_axis() {
         report["active_parts"],
         serde_json::json!(["axes", "cross_talk"])
     );
+    let costed: Vec<&str> = report["parts"]["parts"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["part"].as_str().unwrap())
+        .collect();
+    assert_eq!(costed, ["axes", "cross_talk"]);
     let samples = report["samples"].as_array().unwrap();
     assert_eq!(samples.len(), 50);
     assert_eq!(samples[0]["true_angles_rad"]["beta"], 0.0);
@@ -64,7 +71,13 @@ fn step_table_names_the_active_parts() {
     assert!(out.status.success());
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(text.contains("active parts: [axes]"), "{text}");
-    assert_eq!(text.lines().count(), 2 + 3);
+    assert!(
+        text.lines().nth(1).is_some_and(
+            |line| line.starts_with("part costs, us per period") && line.contains("axes ")
+        ),
+        "{text}"
+    );
+    assert_eq!(text.lines().count(), 3 + 3);
 }
 
 #[test]
@@ -140,5 +153,57 @@ fn step_refuses_a_response_too_long_to_hold() {
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(1), "{samples}: {stderr}");
         assert!(stderr.contains(&format!("--samples {samples}")), "{stderr}");
+    }
+}
+
+#[test]
+fn serve_refuses_timing_values_it_cannot_run_before_its_ready_line() {
+    let scene = fixture("loop-fast.json");
+    for (flags, message) in [
+        (
+            &["--lockstep-answer-allowance-s", "1e300"][..],
+            "--lockstep-answer-allowance-s: 1e300 s is not within (0, 60] s",
+        ),
+        (
+            &["--lockstep-answer-allowance-s", "nan"],
+            "--lockstep-answer-allowance-s: NaN s is not within (0, 60] s",
+        ),
+        (
+            &["--lockstep-answer-allowance-s", "-1"],
+            "--lockstep-answer-allowance-s: -1 s is not within (0, 60] s",
+        ),
+        (
+            &["--watchdog-periods", "0"],
+            "--watchdog-periods: 0 periods is not within [1, 100000000] periods",
+        ),
+        (
+            &[
+                "--watchdog-periods",
+                "100000000",
+                "--lockstep-answer-allowance-s",
+                "1",
+            ],
+            "--watchdog-periods: 100000000 periods of 1 s wait 100000000 s in all",
+        ),
+        (
+            &["--heartbeat-hz", "0"],
+            "--heartbeat-hz: 0 Hz is not within (0, 20000] Hz",
+        ),
+        (
+            &["--timing", "realtime", "--duration-s", "nan"],
+            "--duration-s: NaN s is not within (0, 3600] s",
+        ),
+        (
+            &["--probe-s", "100"],
+            "--probe-s: 100 s is not within [0, 60] s",
+        ),
+    ] {
+        let mut args = vec!["serve", "--scene", &scene, "--fsm", "slcan:pty"];
+        args.extend_from_slice(flags);
+        let out = emulator(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{flags:?}: {stderr}");
+        assert!(stderr.contains(message), "{flags:?}: {stderr}");
+        assert!(out.stdout.is_empty(), "no ready line: {flags:?}");
     }
 }

@@ -30,6 +30,7 @@ use scanhil_controller::run::scenario::{NodeLink, Scenario, TimingMode};
 use scanhil_controller::run::sensor_link::IldSampleDecoder;
 use scanhil_controller::run::sensor_setup::SensorSetupReport;
 use scanhil_controller::run::{EmulatedDevices, ScanEnd};
+use scanhil_emulator::part_cost::{self, CostTiming};
 use scanhil_emulator::scene::Part;
 use scanhil_emulator::sensor::IldSample;
 use scanhil_emulator::sensor_faults::SensorFaultModel;
@@ -172,6 +173,7 @@ pub fn run_probed(
     };
     let scenario = &planned_scenario;
     let (scene, plant) = load_plant(scene_path, Some(scenario.seed))?;
+    let part_costs = part_cost::measure(&scene, CostTiming::default())?;
     let period_s = controller.period_s();
     let rig_sensor_hz = scenario.rig.sensor.map(|sensor| sensor.measuring_rate_hz);
     // A rig without a sensor runs the plant's sensor unread, as `scanhil scan` asks the
@@ -278,6 +280,7 @@ pub fn run_probed(
             "held_coil_currents_a": node.held_command_a(),
             "sensor": transport.sensor.as_ref().map(|sensor| sensor.track),
             "sensor_faults": node.sensor_fault_counts(),
+            "parts": part_costs,
             "timing": serde_json::Value::Null,
         },
     });

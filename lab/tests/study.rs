@@ -110,6 +110,20 @@ fn a_variant_run_by_scanhil_scan_gives_the_same_row_as_in_process() {
     );
     let there = collect(&study, &batch).expect("table").remove(0);
     assert_eq!(here.complete, Some(true));
+    // Both runs list the scene's parts, each with a measured cost (the costs differ: they
+    // are wall times).
+    let names = |row: &scanhil_lab::study::table::Row| {
+        row.parts.iter().map(|p| p.part.clone()).collect::<Vec<_>>()
+    };
+    assert!(names(&here).contains(&"axes".to_owned()), "{here:?}");
+    assert_eq!(names(&here), names(&there));
+    assert!(
+        here.parts
+            .iter()
+            .chain(&there.parts)
+            .all(|p| p.us_per_period.is_finite() && p.us_per_period >= 0.0),
+        "{here:?} {there:?}"
+    );
     assert_eq!(here.parameters, there.parameters);
     assert_eq!(
         here.tracking_rms_relative_alpha,

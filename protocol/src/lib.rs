@@ -18,6 +18,10 @@
 //! - [`error_text`]: an error and its causes on one line, each said once (the programs'
 //!   error line).
 //! - [`loop_timing`]: period jitter and overruns of a real-time loop, as both ends report them.
+//! - [`loop_limits`]: the timing limits both ends hold a run to (duration, answer allowance,
+//!   watchdog, probe, heartbeat).
+//! - [`validation`]: how every program says a value cannot run: the field or flag, the file,
+//!   the value and the allowed range.
 //! - `link` (cargo feature `links`): the real transports: SocketCAN, SLCAN over a serial port or
 //!   pty, the ILD stream over a serial port or pty; link URIs, pty pairs, capture, watchdog.
 
@@ -30,9 +34,11 @@ pub mod fault_injection;
 pub mod ild;
 #[cfg(feature = "links")]
 pub mod link;
+pub mod loop_limits;
 pub mod loop_timing;
 pub mod message;
 pub mod plant_units;
 #[cfg(feature = "links")]
 pub mod scheduling;
 pub mod slcan;
+pub mod validation;

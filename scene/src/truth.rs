@@ -55,7 +55,16 @@ impl TrueScene {
     /// # Errors
     /// [`TruthError`] naming the file (and line and column for a parse error).
     pub fn from_scene_file(path: &Path) -> Result<TrueScene, TruthError> {
-        let file: SceneTruthFile = json_file::read(path, "scene")?;
+        TrueScene::from_json_str(&json_file::read_text(path, "scene")?, path)
+    }
+
+    /// Reads the true surface of scene JSON; `path` names it in errors and anchors relative
+    /// height-map paths.
+    ///
+    /// # Errors
+    /// As [`TrueScene::from_scene_file`], but for reading the file.
+    pub fn from_json_str(text: &str, path: &Path) -> Result<TrueScene, TruthError> {
+        let file: SceneTruthFile = json_file::parse(text, path)?;
         let config = file.surface.ok_or_else(|| TruthError::NoSurface {
             path: path.to_owned(),
         })?;

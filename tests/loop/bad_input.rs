@@ -9,19 +9,91 @@ use crate::util::{assert_success, fixture, number, report, run_scanhil};
 
 /// test-loop-small with `trajectory` and `power` (absolute paths), written into `dir`.
 fn scenario_with(dir: &Path, trajectory: serde_json::Value, power: serde_json::Value) -> String {
-    let path = fixture("scenarios/test-loop-small.json");
+    edited_scenario(dir, "test-loop-small", |scenario| {
+        scenario["trajectory"] = trajectory;
+        scenario["power"] = power;
+    })
+}
+
+/// The fixture scenario `name` (its paths made absolute) changed by `edit`, written into `dir`.
+pub fn edited_scenario(
+    dir: &Path,
+    name: &str,
+    edit: impl FnOnce(&mut serde_json::Value),
+) -> String {
+    let path = fixture(&format!("scenarios/{name}.json"));
     let mut scenario: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&path).expect("the fixture")).expect("JSON");
     let folder = Path::new(&path).parent().expect("scenarios/").to_owned();
-    for key in ["rig", "scene", "controller"] {
-        let relative = scenario[key].as_str().expect("a path").to_owned();
-        scenario[key] = folder.join(relative).display().to_string().into();
+    for key in ["rig", "scene", "controller", "truth"] {
+        if let Some(relative) = scenario[key].as_str() {
+            scenario[key] = folder.join(relative).display().to_string().into();
+        }
     }
-    scenario["trajectory"] = trajectory;
-    scenario["power"] = power;
+    edit(&mut scenario);
     let file = dir.join("scenario.json");
     std::fs::write(&file, scenario.to_string()).expect("writing the scenario");
     file.display().to_string()
+}
+
+/// Runs `scanhil` with `args` and asserts it exits 1 with `message` on stderr before `out`
+/// exists (nothing written, nothing opened).
+fn refused_before_any_output(args: &[&str], out: &Path, message: &str) {
+    let output = run_scanhil(args);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{args:?}: {stderr}");
+    assert!(stderr.contains(message), "{args:?}: {stderr}");
+    assert!(
+        !out.exists(),
+        "{args:?}: refused before the output folder is made"
+    );
+}
+
+#[test]
+fn timing_values_no_end_can_run_are_refused_by_the_host_naming_file_field_or_flag() {
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let out = dir.path().join("out");
+    let out_arg = out.to_str().expect("UTF-8");
+    let scenario = edited_scenario(dir.path(), "test-loop-small", |scenario| {
+        scenario["timing"]["lockstep_answer_allowance_s"] = 1e300.into();
+    });
+    let message = format!(
+        "{scenario}: field `timing.lockstep_answer_allowance_s`: 1e300 s is not within (0, 60] s"
+    );
+    refused_before_any_output(&["scan", &scenario, "--out", out_arg], &out, &message);
+    // Without an emulator the host itself once panicked on it (exit 101).
+    refused_before_any_output(
+        &[
+            "scan",
+            &scenario,
+            "--no-emulator",
+            "--fsm",
+            "slcan:/nonexistent",
+            "--out",
+            out_arg,
+        ],
+        &out,
+        &message,
+    );
+    let small = fixture("scenarios/test-loop-small.json");
+    refused_before_any_output(
+        &["scan", &small, "--watchdog-periods", "0", "--out", out_arg],
+        &out,
+        "--watchdog-periods: 0 periods is not within [1, 100000000] periods",
+    );
+    refused_before_any_output(
+        &[
+            "conformance",
+            "--fsm",
+            "pty",
+            "--scene",
+            &fixture("scenes/loop-fast.json"),
+            "--answer-allowance-s",
+            "1e300",
+        ],
+        &out,
+        "--answer-allowance-s: 1e300 s is not within (0, 60] s",
+    );
 }
 
 #[test]

@@ -19,11 +19,24 @@ fn the_same_seed_gives_bit_identical_recordings_and_reports() {
             out
         })
         .collect();
-    // The report is the same but for the wall-clock run time, which is there and positive.
+    // The report is the same but for the wall-clock figures, which are there: the run time
+    // and what each part of the scene costs per period (measured before the run).
     let [first, second] = [0, 1].map(|i| {
         let mut report = report(runs[i].path());
         let run_time_s = report["run_time_s"].take();
         assert!(run_time_s.as_f64().is_some_and(|t| t > 0.0), "{run_time_s}");
+        let costs = &mut report["emulator"]["summary"]["parts"];
+        for figure in ["plant_us_per_period", "bare_us_per_period"] {
+            assert!(costs[figure].take().as_f64().is_some_and(|us| us >= 0.0));
+        }
+        for part in costs["parts"].as_array_mut().expect("the parts") {
+            assert!(
+                part["us_per_period"]
+                    .take()
+                    .as_f64()
+                    .is_some_and(|us| us >= 0.0)
+            );
+        }
         report
     });
     assert_eq!(first, second, "report.json differs beyond its run time");

@@ -89,7 +89,10 @@ fn a_fault_override_on_the_command_line_is_checked_as_the_file_is() {
     assert_eq!(output.status.code(), Some(1));
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(
-        stderr.contains("test-loop-faults.json: field `faults.node_to_host.drop_rate`: 1.5 must be within 0 and 1"),
+        stderr.contains(
+            "--fault node_to_host.drop_rate=1.5: field `faults.node_to_host.drop_rate`: 1.5 \
+             must be within 0 and 1"
+        ),
         "{stderr}"
     );
 }

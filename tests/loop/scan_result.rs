@@ -50,6 +50,25 @@ fn duplo_stud_height_tracking_and_recordings() {
     assert_tracks_as_predicted(&report, &[("alpha", (0.97, 1.10)), ("beta", (1.0, 1.4))]);
     assert_eq!(number(&report, "/periods/saturated_in_frame"), 0.0);
 
+    // The scene's parts, each with the cost the emulator measured before the run.
+    let parts = report
+        .pointer("/emulator/summary/parts/parts")
+        .and_then(serde_json::Value::as_array)
+        .expect("the emulator's summary lists the parts");
+    let names: Vec<&str> = parts.iter().filter_map(|p| p["part"].as_str()).collect();
+    assert!(
+        ["axes", "amplifier", "optics", "sensor"]
+            .iter()
+            .all(|part| names.contains(part)),
+        "{names:?}"
+    );
+    assert!(
+        parts
+            .iter()
+            .all(|p| p["us_per_period"].as_f64().is_some_and(|us| us >= 0.0)),
+        "{parts:?}"
+    );
+
     // 1 s of lead-in (the PID's settling, whole 1 s Lissajous frames), then 0.25 s recorded.
     let periods = number(&report, "/periods/done") as usize;
     assert_eq!(periods, 25_000);

@@ -8,6 +8,8 @@ use anyhow::Context;
 use scanhil_controller::run::conformance::{junit_xml, run_checks, table};
 use scanhil_controller::run::scenario::{NodeLink, TimingConfig};
 use scanhil_controller::run::{LinkPlan, finish_emulator, open_links};
+use scanhil_protocol::loop_limits;
+use scanhil_protocol::validation::{Allowed, Invalid};
 
 /// Check a mirror node (and a sensor) against the loop protocol.
 /// The highest control rate conformance accepts, Hz (ten times the paper's 20 kHz).
@@ -48,21 +50,19 @@ pub struct Args {
 /// # Errors
 /// Links that do not open; an emulated node without a scene; the JUnit file not writable.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    if !(args.rate_hz.is_finite() && args.rate_hz > 0.0 && args.rate_hz <= MAX_RATE_HZ) {
-        anyhow::bail!(
-            "--rate-hz {}: the control rate must be positive, finite and at most {MAX_RATE_HZ} Hz",
-            args.rate_hz
-        );
-    }
-    if !(args.answer_allowance_s.is_finite() && args.answer_allowance_s > 0.0) {
-        anyhow::bail!(
-            "--answer-allowance-s {}: must be positive and finite",
-            args.answer_allowance_s
-        );
-    }
-    if args.watchdog_periods == 0 {
-        anyhow::bail!("--watchdog-periods 0: at least one missed answer must be allowed");
-    }
+    Allowed::above(0.0, MAX_RATE_HZ, "Hz")
+        .check("rate_hz", args.rate_hz)
+        .and_then(|()| {
+            loop_limits::ANSWER_ALLOWANCE_S.check("answer_allowance_s", args.answer_allowance_s)
+        })
+        .and_then(|()| {
+            loop_limits::check_watchdog(
+                "watchdog_periods",
+                args.watchdog_periods,
+                args.answer_allowance_s,
+            )
+        })
+        .map_err(Invalid::as_own_flag)?;
     let fsm = NodeLink::parse(&args.fsm);
     let sensor = args.sensor.as_deref().map(NodeLink::parse);
     let emulated = fsm == NodeLink::Pty || sensor == Some(NodeLink::Pty);

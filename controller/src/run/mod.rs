@@ -73,6 +73,7 @@ use std::time::Duration;
 use anyhow::{Context, bail};
 use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{CanCapture, CanLink, CaptureClock, PtyPair, VirtualClock};
+use scanhil_protocol::validation::Invalid;
 
 use emulator_process::{EmulatorProcess, locate_emulator};
 use host_loop::{HostLoop, LoopRecord};
@@ -125,6 +126,90 @@ pub struct ScanOptions {
     pub probe_s: Option<f64>,
 }
 
+impl ScanOptions {
+    /// `scenario` with these overrides applied and checked as the file is
+    /// ([`Scenario::check_values`]); an error in a value a flag gave names the flag, one in
+    /// the file's own value the file and field.
+    ///
+    /// # Errors
+    /// [`scenario::ScenarioError::Invalid`] naming the flag, or the file and field.
+    pub fn apply_to(&self, scenario: &Scenario) -> Result<Scenario, scenario::ScenarioError> {
+        let mut scenario = scenario.clone();
+        if let Some(fsm) = &self.fsm {
+            scenario.links.fsm = fsm.clone();
+        }
+        if let Some(sensor) = &self.sensor {
+            scenario.links.sensor = sensor.clone();
+        }
+        if let Some(mode) = self.timing {
+            scenario.timing.mode = mode;
+        }
+        if let Some(duration_s) = self.duration_s {
+            scenario.duration_s = duration_s;
+        }
+        if let Some(periods) = self.watchdog_periods {
+            scenario.timing.watchdog_periods = periods;
+        }
+        if let Some(duration_s) = self.lead_in_s {
+            scenario.lead_in = LeadIn::Fixed { duration_s };
+        }
+        if self.no_emulator {
+            scenario.links.spawn_emulator = false;
+        }
+        for assignment in &self.faults {
+            scenario.faults = scenario.faults.with_override(assignment).map_err(|error| {
+                Invalid::new("fault", Invalid::new(error.field, error.reason).to_string())
+                    .as_flag(&format!("--fault {assignment}"))
+            })?;
+        }
+        let timing = &mut scenario.timing;
+        timing.busy_poll |= self.busy_poll;
+        timing.cpu = self.cpu.or(timing.cpu);
+        timing.emulator_cpu = self.emulator_cpu.or(timing.emulator_cpu);
+        timing.sched_fifo_priority = self.sched_fifo_priority.or(timing.sched_fifo_priority);
+        timing.probe_s = self.probe_s.unwrap_or(timing.probe_s);
+        scenario
+            .check_values()
+            .map_err(|invalid| match self.flag_of(&invalid.field) {
+                Some(flag) => invalid.as_flag(flag),
+                None => invalid.in_file(&scenario.path),
+            })?;
+        Ok(scenario)
+    }
+
+    /// The flag that set scenario field `field`, when it was given.
+    fn flag_of(&self, field: &str) -> Option<&'static str> {
+        let given = |given: bool, flag: &'static str| given.then_some(flag);
+        match field {
+            "duration_s" => given(self.duration_s.is_some(), "--duration-s"),
+            "timing.watchdog_periods" => {
+                given(self.watchdog_periods.is_some(), "--watchdog-periods")
+            }
+            "lead_in.duration_s" => given(self.lead_in_s.is_some(), "--lead-in-s"),
+            "timing.mode" => [
+                (self.timing.is_some(), "--timing"),
+                (self.busy_poll, "--busy-poll"),
+                (self.cpu.is_some(), "--cpu"),
+                (self.emulator_cpu.is_some(), "--emulator-cpu"),
+                (self.sched_fifo_priority.is_some(), "--sched-fifo-priority"),
+            ]
+            .into_iter()
+            .find_map(|(given, flag)| given.then_some(flag)),
+            "timing.cpu" => given(self.cpu.is_some(), "--cpu"),
+            "timing.emulator_cpu" => given(self.emulator_cpu.is_some(), "--emulator-cpu"),
+            "timing.sched_fifo_priority" => {
+                given(self.sched_fifo_priority.is_some(), "--sched-fifo-priority")
+            }
+            "timing.probe_s" => given(self.probe_s.is_some(), "--probe-s"),
+            "scene" | "faults.sensor" => given(
+                self.fsm.is_some() || self.sensor.is_some() || self.no_emulator,
+                "--fsm/--sensor/--no-emulator",
+            ),
+            _ => None,
+        }
+    }
+}
+
 /// How the scan ended, for the exit status.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum ScanEnd {
@@ -161,45 +246,7 @@ pub struct ScanResult {
 /// Anything that keeps the run from starting (bad files, an unfit bus load, links that do
 /// not open, no emulator binary) or from writing its outputs.
 pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<ScanResult> {
-    let mut scenario = scenario.clone();
-    if let Some(fsm) = &options.fsm {
-        scenario.links.fsm = fsm.clone();
-    }
-    if let Some(sensor) = &options.sensor {
-        scenario.links.sensor = sensor.clone();
-    }
-    if let Some(mode) = options.timing {
-        scenario.timing.mode = mode;
-    }
-    if let Some(duration_s) = options.duration_s {
-        scenario.duration_s = duration_s;
-    }
-    if let Some(periods) = options.watchdog_periods {
-        scenario.timing.watchdog_periods = periods;
-    }
-    if let Some(duration_s) = options.lead_in_s {
-        scenario.lead_in = LeadIn::Fixed { duration_s };
-    }
-    if options.no_emulator {
-        scenario.links.spawn_emulator = false;
-    }
-    for assignment in &options.faults {
-        scenario.faults = scenario
-            .faults
-            .with_override(assignment)
-            .map_err(|source| scenario::ScenarioError::InvalidFaults {
-                path: scenario.path.clone(),
-                source,
-            })?;
-    }
-    let timing = &mut scenario.timing;
-    timing.busy_poll |= options.busy_poll;
-    timing.cpu = options.cpu.or(timing.cpu);
-    timing.emulator_cpu = options.emulator_cpu.or(timing.emulator_cpu);
-    timing.sched_fifo_priority = options.sched_fifo_priority.or(timing.sched_fifo_priority);
-    timing.probe_s = options.probe_s.unwrap_or(timing.probe_s);
-    // The overrides pass the same checks as the file.
-    scenario.check()?;
+    let mut scenario = options.apply_to(scenario)?;
     let plan = ScanPlan::new(&scenario)?;
     // What runs (and is reported) is the trajectory after the power check.
     scenario.trajectory = plan.trajectory.clone();

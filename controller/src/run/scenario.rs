@@ -13,7 +13,9 @@
 use std::path::{Path, PathBuf};
 
 use scanhil_geometry::GeometryModel;
+use scanhil_protocol::loop_limits;
 use scanhil_protocol::scheduling::{self, RealtimeOptions};
+use scanhil_protocol::validation::{Invalid, InvalidValue};
 use serde::{Deserialize, Serialize};
 
 use super::lead_in::LeadIn;
@@ -22,11 +24,11 @@ use crate::imaging::feature::FeatureParams;
 use crate::imaging::pipeline::MAX_PROGRESSIVE_STEPS;
 use crate::rig::{Rig, RigError};
 use crate::trajectory::Trajectory;
-use scanhil_protocol::fault_injection::FaultConfigError;
 use scanhil_scene::json_file::{self, JsonFileError};
 
-/// The longest scan a scenario may ask for, s (an hour of 20 kHz loop, 72 million periods).
-pub const MAX_DURATION_S: f64 = 3600.0;
+/// The longest scan a scenario may ask for, s (an hour of 20 kHz loop, 72 million periods:
+/// [`loop_limits::DURATION_S`]).
+pub const MAX_DURATION_S: f64 = loop_limits::DURATION_S.max;
 
 /// A loaded, checked scenario with absolute paths.
 #[derive(Debug, Clone)]
@@ -99,9 +101,6 @@ pub struct TimingConfig {
     pub probe_s: f64,
 }
 
-/// The longest wake-up probe a scenario may ask for, s.
-pub const MAX_PROBE_S: f64 = 60.0;
-
 impl TimingConfig {
     /// What the host asks of the OS for its real-time loop.
     #[must_use]
@@ -122,17 +121,31 @@ impl TimingConfig {
         }
     }
 
-    /// Checks the real-time options: only in real time, a priority within 1 to 99, CPUs
-    /// the machine has, two busy-polling ends on two CPUs, a probe of 0 to 60 s.
-    fn check(&self) -> Result<(), (&'static str, String)> {
+    /// Checks the timing of a loop at `period_s`: the answer allowance and the watchdog
+    /// within the limits both ends hold ([`loop_limits`]), and the real-time options: only in
+    /// real time, a priority within 1 to 99, CPUs the machine has, two busy-polling ends on
+    /// two CPUs, a probe of 0 to 60 s. Fields are named below `timing`.
+    fn check(&self, period_s: f64) -> Result<(), Invalid> {
+        loop_limits::ANSWER_ALLOWANCE_S.check(
+            "timing.lockstep_answer_allowance_s",
+            self.lockstep_answer_allowance_s,
+        )?;
+        let allowance_s = match self.mode {
+            TimingMode::Lockstep => self.lockstep_answer_allowance_s,
+            TimingMode::Realtime => period_s,
+        };
+        loop_limits::check_watchdog(
+            "timing.watchdog_periods",
+            self.watchdog_periods,
+            allowance_s,
+        )?;
         let asked =
             self.host_options() != RealtimeOptions::default() || self.emulator_cpu.is_some();
         if asked && self.mode == TimingMode::Lockstep {
-            return Err((
+            return Err(Invalid::new(
                 "timing.mode",
                 "busy_poll, cpu, emulator_cpu and sched_fifo_priority apply to real time only \
-                 (`\"mode\": \"realtime\"` or `--timing realtime`)"
-                    .into(),
+                 (`\"mode\": \"realtime\"` or `--timing realtime`)",
             ));
         }
         for (options, cpu_field) in [
@@ -140,15 +153,15 @@ impl TimingConfig {
             (self.emulator_options(), "timing.emulator_cpu"),
         ] {
             scheduling::check(&options).map_err(|(field, reason)| match field {
-                "cpu" => (cpu_field, reason),
-                _ => ("timing.sched_fifo_priority", reason),
+                "cpu" => Invalid::new(cpu_field, reason),
+                _ => Invalid::new("timing.sched_fifo_priority", reason),
             })?;
         }
         if self.busy_poll
             && let (Some(host), Some(emulator)) = (self.cpu, self.emulator_cpu)
             && host == emulator
         {
-            return Err((
+            return Err(Invalid::new(
                 "timing.emulator_cpu",
                 format!(
                     "CPU {emulator} is also the host's: two busy-polling loops on one CPU take \
@@ -156,13 +169,7 @@ impl TimingConfig {
                 ),
             ));
         }
-        if !(0.0..=MAX_PROBE_S).contains(&self.probe_s) {
-            return Err((
-                "timing.probe_s",
-                format!("{} s is not between 0 and {MAX_PROBE_S} s", self.probe_s),
-            ));
-        }
-        Ok(())
+        loop_limits::PROBE_S.check("timing.probe_s", self.probe_s)
     }
 }
 
@@ -322,24 +329,10 @@ pub enum ScenarioError {
         /// The rig's own error (file, line, field).
         source: RigError,
     },
-    /// A field has a value that cannot run.
-    #[error("{path}: field `{field}`: {reason}")]
-    Invalid {
-        /// The scenario file.
-        path: PathBuf,
-        /// The offending field.
-        field: &'static str,
-        /// Why.
-        reason: String,
-    },
-    /// The `faults` section has a value that cannot run.
-    #[error("{path}: field `{}`: {}", .source.field, .source.reason)]
-    InvalidFaults {
-        /// The scenario file.
-        path: PathBuf,
-        /// The field (its full path) and why.
-        source: FaultConfigError,
-    },
+    /// A value that cannot run: a field of the scenario file, or the command-line flag that
+    /// overrode it.
+    #[error(transparent)]
+    Invalid(#[from] InvalidValue),
 }
 
 #[derive(Deserialize)]
@@ -414,97 +407,68 @@ impl Scenario {
         Ok(scenario)
     }
 
-    /// Checks every field's value; `scanhil scan` calls it again after its command-line
-    /// overrides, so an override passes the same validation as the file.
+    /// Checks every field's value, naming the scenario file and the field.
     ///
     /// # Errors
     /// [`ScenarioError::Invalid`] naming the scenario file and the field.
     pub fn check(&self) -> Result<(), ScenarioError> {
-        let invalid = |field: &'static str, reason: String| ScenarioError::Invalid {
-            path: self.path.clone(),
-            field,
-            reason,
-        };
-        if !(self.duration_s.is_finite()
-            && self.duration_s > 0.0
-            && self.duration_s <= MAX_DURATION_S)
-        {
-            return Err(invalid(
-                "duration_s",
-                format!(
-                    "{:e} s must be positive, finite and at most {MAX_DURATION_S} s",
-                    self.duration_s
-                ),
-            ));
-        }
-        if self.timing.watchdog_periods == 0 {
-            return Err(invalid(
-                "timing.watchdog_periods",
-                "must be at least 1".into(),
-            ));
-        }
-        self.timing
-            .check()
-            .map_err(|(field, reason)| invalid(field, reason))?;
-        let allowance = self.timing.lockstep_answer_allowance_s;
-        if !(allowance.is_finite() && allowance > 0.0) {
-            return Err(invalid(
-                "timing.lockstep_answer_allowance_s",
-                format!("{allowance} s must be positive and finite"),
-            ));
-        }
+        self.check_values()
+            .map_err(|invalid| invalid.in_file(&self.path).into())
+    }
+
+    /// Checks every field's value; the error names the field alone, for the caller to place
+    /// in the file or on the flag that overrode it (`scanhil scan` checks again after its
+    /// command-line overrides, so an override passes the same checks as the file).
+    ///
+    /// # Errors
+    /// The first field whose value cannot run, with the value and what is allowed.
+    pub fn check_values(&self) -> Result<(), Invalid> {
+        let field = |(field, reason): (&'static str, String)| Invalid::new(field, reason);
+        loop_limits::DURATION_S.check("duration_s", self.duration_s)?;
+        self.timing.check(self.rig.period_s())?;
         let pitch = self.imaging.pitch_mm;
         if !(pitch.is_finite() && pitch > 0.0) {
-            return Err(invalid(
+            return Err(Invalid::new(
                 "imaging.pitch_mm",
                 format!("{pitch} mm must be positive and finite"),
             ));
         }
         let steps = self.imaging.progressive_steps;
         if !(1..=MAX_PROGRESSIVE_STEPS).contains(&steps) {
-            return Err(invalid(
+            return Err(Invalid::new(
                 "imaging.progressive_steps",
                 format!("{steps} is not between 1 and {MAX_PROGRESSIVE_STEPS}"),
             ));
         }
         if let Some(feature) = &self.imaging.feature {
             feature.check().map_err(|(field, reason)| {
-                invalid("imaging.feature", format!("{field}: {reason}"))
+                Invalid::new("imaging.feature", format!("{field}: {reason}"))
             })?;
         }
         self.trajectory
             .check(0.5 * self.rig.control_rate_hz)
-            .map_err(|(field, reason)| invalid(field, reason))?;
-        self.power
+            .map_err(field)?;
+        self.power.check().map_err(field)?;
+        self.lead_in.check().map_err(field)?;
+        self.faults
             .check()
-            .map_err(|(field, reason)| invalid(field, reason))?;
-        self.lead_in
-            .check()
-            .map_err(|(field, reason)| invalid(field, reason))?;
+            .map_err(|error| Invalid::new(error.field, error.reason))?;
         let links_are_emulated = self.links.spawn_emulator
             || self.links.fsm == NodeLink::Pty
             || self.links.sensor == NodeLink::Pty;
-        self.faults
-            .check()
-            .map_err(|source| ScenarioError::InvalidFaults {
-                path: self.path.clone(),
-                source,
-            })?;
         if self.faults.sensor.is_active() && !links_are_emulated {
-            return Err(invalid(
+            return Err(Invalid::new(
                 "faults.sensor",
                 "sensor faults are injected into the emulated sensor: they need emulated \
-                 devices (`pty` links or `spawn_emulator`)"
-                    .into(),
+                 devices (`pty` links or `spawn_emulator`)",
             ));
         }
         if self.scene.is_none() && links_are_emulated {
-            return Err(invalid(
+            return Err(Invalid::new(
                 "scene",
                 "emulated devices (`pty` links or `spawn_emulator`) need the scene the \
                  emulator serves; a scan of real devices sets both links to their URIs and \
-                 `spawn_emulator` to false"
-                    .into(),
+                 `spawn_emulator` to false",
             ));
         }
         Ok(())
@@ -530,35 +494,41 @@ mod tests {
 
     #[test]
     fn real_time_options_are_checked_and_name_their_field() {
-        let field = |timing: TimingConfig| timing.check().map_err(|(field, _)| field);
-        assert_eq!(field(realtime()), Ok(()));
+        let field = |timing: TimingConfig| timing.check(5e-5).err().map(|error| error.field);
+        assert_eq!(field(realtime()), None);
         let lockstep_busy = TimingConfig {
             busy_poll: true,
             ..TimingConfig::default()
         };
-        assert_eq!(field(lockstep_busy), Err("timing.mode"));
+        assert_eq!(field(lockstep_busy).as_deref(), Some("timing.mode"));
         let priority = TimingConfig {
             sched_fifo_priority: Some(100),
             ..realtime()
         };
-        assert_eq!(field(priority), Err("timing.sched_fifo_priority"));
+        assert_eq!(
+            field(priority).as_deref(),
+            Some("timing.sched_fifo_priority")
+        );
         let no_such_cpu = TimingConfig {
             emulator_cpu: Some(usize::MAX),
             ..realtime()
         };
-        assert_eq!(field(no_such_cpu), Err("timing.emulator_cpu"));
+        assert_eq!(field(no_such_cpu).as_deref(), Some("timing.emulator_cpu"));
         let one_cpu_for_two_spinners = TimingConfig {
             busy_poll: true,
             cpu: Some(0),
             emulator_cpu: Some(0),
             ..realtime()
         };
-        assert_eq!(field(one_cpu_for_two_spinners), Err("timing.emulator_cpu"));
+        assert_eq!(
+            field(one_cpu_for_two_spinners).as_deref(),
+            Some("timing.emulator_cpu")
+        );
         let probe = TimingConfig {
             probe_s: -1.0,
             ..realtime()
         };
-        assert_eq!(field(probe), Err("timing.probe_s"));
+        assert_eq!(field(probe).as_deref(), Some("timing.probe_s"));
     }
 
     #[test]

@@ -3,14 +3,12 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{Context, bail};
+use anyhow::Context;
 use scanhil_protocol::fault_injection::SensorFaults;
 
 use scanhil_emulator::serve::misbehaviour::Misbehaviour;
-use scanhil_emulator::serve::{
-    DEFAULT_HEARTBEAT_HZ, DEFAULT_PROBE_S, MAX_PROBE_S, ServeConfig, TimingMode,
-};
-use scanhil_protocol::scheduling::{self, RealtimeOptions};
+use scanhil_emulator::serve::{DEFAULT_HEARTBEAT_HZ, DEFAULT_PROBE_S, ServeConfig, TimingMode};
+use scanhil_protocol::scheduling::RealtimeOptions;
 
 /// Serve the emulated mirror (`--fsm`) and/or sensor (`--sensor`) on real links.
 #[derive(Debug, clap::Args)]
@@ -87,18 +85,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         cpu: args.cpu,
         sched_fifo_priority: args.sched_fifo_priority,
     };
-    if let Err((field, reason)) = scheduling::check(&realtime) {
-        bail!("--{}: {reason}", field.replace('_', "-"));
-    }
-    if !(0.0..=MAX_PROBE_S).contains(&args.probe_s) {
-        bail!(
-            "--probe-s: {} s is not between 0 and {MAX_PROBE_S} s",
-            args.probe_s
-        );
-    }
-    if args.timing == TimingMode::Lockstep && realtime != RealtimeOptions::default() {
-        bail!("--busy-poll, --cpu and --sched-fifo-priority apply to --timing realtime only");
-    }
+    // Every value is checked (ServeConfig::check) once the scene gives the control period,
+    // before any link opens or the ready line is printed.
     let config = ServeConfig {
         scene: args.scene,
         fsm: args.fsm,

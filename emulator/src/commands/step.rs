@@ -10,6 +10,7 @@ use super::print_or_broken_pipe;
 use serde::Serialize;
 
 use scanhil_emulator::mirror::SensingAxis;
+use scanhil_emulator::part_cost::{self, CostTiming, PartCosts};
 use scanhil_emulator::plant::{Plant, PlantStep};
 use scanhil_emulator::scene::{Part, Scene};
 use scanhil_protocol::ild::IldValue;
@@ -49,6 +50,7 @@ fn parse_axis(text: &str) -> Result<SensingAxis, String> {
 struct Report<'a> {
     scene: &'a str,
     active_parts: Vec<&'static str>,
+    parts: PartCosts,
     integrator: Option<String>,
     period_s: f64,
     coil_resistance_ohm: f64,
@@ -75,6 +77,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let scene = Scene::load(&args.scene)?;
     let mut plant = Plant::from_scene(&scene)
         .with_context(|| format!("cannot build the plant of {}", args.scene.display()))?;
+    let parts = part_cost::measure(&scene, CostTiming::default())?;
     let command = actuator_from_sensing(args.axis.pair(args.amplitude));
     let samples = (0..args.samples)
         .map(|_| plant.step(command))
@@ -82,6 +85,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let report = Report {
         scene: &scene.name,
         active_parts: plant.active_parts().iter().map(|p| p.name()).collect(),
+        parts,
         integrator: plant
             .integrator()
             .map(|(method, substeps)| format!("{method} x{substeps}")),
@@ -115,6 +119,13 @@ fn print_table(report: &Report<'_>, moves: bool) -> std::io::Result<()> {
             .unwrap_or("none (nothing moves)"),
         report.period_s * 1e6,
         report.coil_resistance_ohm,
+    )?;
+    writeln!(
+        out,
+        "part costs, us per period (marginal, measured over {} periods): {} | whole plant {:.3} us",
+        report.parts.periods_timed,
+        report.parts.describe(),
+        report.parts.plant_us_per_period
     )?;
     if !moves {
         writeln!(

@@ -30,7 +30,9 @@ use std::time::Duration;
 use anyhow::{Context, bail};
 use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{CanLink, LinkError, LinkUri, PtyPair};
+use scanhil_protocol::loop_limits;
 use scanhil_protocol::scheduling::{self, RealtimeOptions};
+use scanhil_protocol::validation::Invalid;
 
 use crate::plant::Plant;
 use crate::scene::Scene;
@@ -44,9 +46,6 @@ pub const DEFAULT_HEARTBEAT_HZ: f64 = 10.0;
 
 /// Real time: how long the wake-up probe runs before the loop unless told otherwise, s.
 pub const DEFAULT_PROBE_S: f64 = 0.5;
-
-/// The longest wake-up probe, s.
-pub const MAX_PROBE_S: f64 = 60.0;
 
 /// Who advances time.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -87,6 +86,45 @@ pub struct ServeConfig {
     pub realtime: RealtimeOptions,
     /// Real time: how long the wake-up probe runs before the ready line, s (0: not at all).
     pub probe_s: f64,
+}
+
+impl ServeConfig {
+    /// Checks every timing value against the limits the host holds a run to
+    /// ([`loop_limits`]), for a plant whose control period is `period_s`: the watchdog, the
+    /// answer allowance, the real-time duration, the heartbeat (at most one per period), the
+    /// probe and the real-time options. The error names the value's flag
+    /// ([`Invalid::as_own_flag`]).
+    ///
+    /// # Errors
+    /// The first value out of its range.
+    pub fn check(&self, period_s: f64) -> Result<(), Invalid> {
+        loop_limits::ANSWER_ALLOWANCE_S.check(
+            "lockstep_answer_allowance_s",
+            self.lockstep_answer_allowance_s,
+        )?;
+        let allowance_s = match self.timing {
+            TimingMode::Lockstep => self.lockstep_answer_allowance_s,
+            TimingMode::Realtime => period_s,
+        };
+        loop_limits::check_watchdog("watchdog_periods", self.watchdog_periods, allowance_s)?;
+        loop_limits::DURATION_S.check_some("duration_s", self.duration_s)?;
+        loop_limits::heartbeat_hz(1.0 / period_s).check("heartbeat_hz", self.heartbeat_hz)?;
+        loop_limits::PROBE_S.check("probe_s", self.probe_s)?;
+        scheduling::check(&self.realtime).map_err(|(field, reason)| Invalid::new(field, reason))?;
+        if self.timing == TimingMode::Lockstep && self.realtime != RealtimeOptions::default() {
+            return Err(Invalid::new(
+                "timing",
+                "--busy-poll, --cpu and --sched-fifo-priority apply to --timing realtime only",
+            ));
+        }
+        if self.misbehave.is_some() && self.timing == TimingMode::Realtime {
+            return Err(Invalid::new(
+                "misbehave",
+                "the non-conforming nodes run in lockstep only, not with --timing realtime",
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// How a serve run ended.
@@ -189,14 +227,17 @@ pub struct ServeLinks {
 /// frame and ends with [`ServeOutcome::LinkFailed`] and the reason in the summary.
 ///
 /// # Errors
-/// A scene or plant that cannot be built, a link that does not open, a plant error.
+/// A scene or plant that cannot be built, a value out of its range
+/// ([`ServeConfig::check`]), a link that does not open, a plant error.
 pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
-    if config.misbehave.is_some() && config.timing == TimingMode::Realtime {
-        bail!(
-            "--misbehave: the non-conforming nodes run in lockstep only, not with --timing realtime"
-        );
-    }
     let (scene, plant) = load_plant(&config.scene, config.seed)?;
+    config
+        .check(plant.period_s())
+        .map_err(Invalid::as_own_flag)?;
+    // What each part costs, measured before any link opens (the plant that runs is not
+    // touched).
+    let part_costs = crate::part_cost::measure(&scene, crate::part_cost::CostTiming::default())
+        .with_context(|| format!("timing the parts of {}", config.scene.display()))?;
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -275,6 +316,7 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
             "link": link_summary(&links.fsm),
             "sensor": links.sensor.summary(),
             "sensor_faults": node.sensor_fault_counts(),
+            "parts": part_costs,
             "timing": report.timing,
             "error": report.error,
         });

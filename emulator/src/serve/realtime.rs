@@ -212,12 +212,16 @@ pub async fn run(
         // allowance is dropped (and counted), as frames on a bus nobody reads are lost; an
         // earlier period's bytes go first, and while they wait this period's are not queued.
         let written_before = links.fsm.bytes_written();
+        // Whether the sensor's turn came before the allowance ran out: if not, its samples
+        // were never counted, and are counted as dropped below.
+        let sensor_reached = std::cell::Cell::new(false);
         let send = async {
             links.fsm.flush().await?;
             // The period's frames go out together: one write per link.
             for frame in &frames {
                 links.fsm.queue(frame).await?;
             }
+            sensor_reached.set(true);
             links.sensor.emit(&samples, &mut links.fsm).await?;
             links.fsm.flush().await?;
             anyhow::Ok(())
@@ -235,6 +239,9 @@ pub async fn run(
         } else {
             dropped_periods += 1;
             previous_reading_late_s = None;
+            if !sensor_reached.get() {
+                links.sensor.count_unsent(&samples);
+            }
         }
         // A slow host still takes bytes; one that stopped reading takes none.
         if sent || links.fsm.bytes_written() != written_before {

@@ -237,6 +237,27 @@ impl SensorPort {
         self.flush(fsm).await
     }
 
+    /// Counts the samples of a period as dropped without queueing them: the period's send
+    /// allowance ran out on the mirror's link before the sensor's turn (real time), so every
+    /// sample is still counted once, sent or dropped.
+    pub fn count_unsent(&mut self, samples: &[IldSample]) {
+        match self {
+            SensorPort::Off => {}
+            SensorPort::Ild(port) => {
+                for sample in samples {
+                    if port.settings.cycle(sample).is_some() {
+                        port.clock.count(sample, false);
+                    }
+                }
+            }
+            SensorPort::Can(clock) => {
+                for sample in samples {
+                    clock.count(sample, false);
+                }
+            }
+        }
+    }
+
     /// Queues the samples of one period, in order, without writing them and without looking
     /// for commands (a loop that waits on [`SensorPort::answer_commands`] between periods
     /// answers them there; lockstep does, and saves a read per period). On the ILD line each

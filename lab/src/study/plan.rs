@@ -52,7 +52,16 @@ impl Study {
     /// document, an empty value list, both or neither of `grid` and `list`, more than
     /// [`MAX_VARIANTS`] variants.
     pub fn load(path: &Path) -> anyhow::Result<Study> {
-        let file: StudyFile = json_file::read(path, "study")?;
+        Study::from_json_str(&json_file::read_text(path, "study")?, path)
+    }
+
+    /// Parses a study and expands its variants; `path` names it in errors and anchors its
+    /// relative scenario path.
+    ///
+    /// # Errors
+    /// As [`Study::load`], but for reading the file.
+    pub fn from_json_str(text: &str, path: &Path) -> anyhow::Result<Study> {
+        let file: StudyFile = json_file::parse(text, path)?;
         let variants = match (file.grid, file.list) {
             (Some(grid), None) => expand_grid(&grid).with_context(|| path.display().to_string())?,
             (None, Some(list)) => list,

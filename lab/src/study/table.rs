@@ -41,6 +41,18 @@ pub struct Row {
     pub median_abs_error_mm: Option<f64>,
     /// Wall time of the scan, s (as the runner measured it).
     pub run_time_s: Option<f64>,
+    /// The scene's active parts with what each costs per control period (the emulator's
+    /// `parts`), in dependency order; empty without an emulator summary.
+    pub parts: Vec<PartTime>,
+}
+
+/// One active part of a variant's scene and its cost.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct PartTime {
+    /// The part's name.
+    pub part: String,
+    /// Its measured marginal cost per control period, in microseconds.
+    pub us_per_period: f64,
 }
 
 impl Row {
@@ -62,6 +74,7 @@ impl Row {
             coverage: None,
             median_abs_error_mm: None,
             run_time_s: None,
+            parts: Vec::new(),
         };
         let report = std::fs::read_to_string(&report_path)
             .map_err(|error| format!("{}: {error}", report_path.display()))
@@ -96,6 +109,21 @@ impl Row {
         row.coverage = number("/imaging/coverage_fraction");
         row.median_abs_error_mm = number("/imaging/truth_error/covered_median_abs_mm");
         row.run_time_s = number("/run_time_s");
+        row.parts = report
+            .pointer("/emulator/summary/parts/parts")
+            .and_then(Value::as_array)
+            .map(|parts| {
+                parts
+                    .iter()
+                    .filter_map(|p| {
+                        Some(PartTime {
+                            part: p.get("part")?.as_str()?.to_owned(),
+                            us_per_period: p.get("us_per_period")?.as_f64()?,
+                        })
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
         row
     }
 }
@@ -129,7 +157,7 @@ pub fn collect(study: &Study, out_dir: &Path) -> anyhow::Result<Vec<Row>> {
 }
 
 /// The figure columns after the variant number and the parameters.
-const FIGURE_COLUMNS: [&str; 9] = [
+const FIGURE_COLUMNS: [&str; 10] = [
     "complete",
     "stud_height_mm",
     "stud_std_mm",
@@ -138,6 +166,7 @@ const FIGURE_COLUMNS: [&str; 9] = [
     "coverage",
     "median_abs_error_mm",
     "run_time_s",
+    "parts_us_per_period",
     "problem",
 ];
 
@@ -180,6 +209,13 @@ pub fn write_csv(out: &mut impl Write, keys: &[String], rows: &[Row]) -> std::io
             ]
             .map(figure),
         );
+        cells.push(
+            row.parts
+                .iter()
+                .map(|p| format!("{}:{:.3}", p.part, p.us_per_period))
+                .collect::<Vec<_>>()
+                .join(" "),
+        );
         cells.push(row.problem.clone().unwrap_or_default());
         writeln!(
             out,
@@ -220,6 +256,16 @@ mod tests {
             coverage: None,
             median_abs_error_mm: None,
             run_time_s: Some(0.5),
+            parts: vec![
+                PartTime {
+                    part: "axes".into(),
+                    us_per_period: 0.02,
+                },
+                PartTime {
+                    part: "sensor".into(),
+                    us_per_period: 1.4159,
+                },
+            ],
         };
         let keys = vec!["scenario.controller".to_owned(), "scenario.seed".to_owned()];
         let mut out = Vec::new();
@@ -230,11 +276,11 @@ mod tests {
             lines[0],
             "variant,scenario.controller,scenario.seed,complete,stud_height_mm,stud_std_mm,\
              tracking_rms_relative_alpha,tracking_rms_relative_beta,coverage,\
-             median_abs_error_mm,run_time_s,problem"
+             median_abs_error_mm,run_time_s,parts_us_per_period,problem"
         );
         assert_eq!(
             lines[1],
-            "1,\"/a,b.json\",3,false,4.66,,,,,,0.5,\"link timeout: \"\"x\"\"\""
+            "1,\"/a,b.json\",3,false,4.66,,,,,,0.5,axes:0.020 sensor:1.416,\"link timeout: \"\"x\"\"\""
         );
     }
 }

@@ -497,8 +497,8 @@ pub enum IldInfoError {
     /// No `Measuring range:` line.
     #[error("GETINFO reply has no `Measuring range:` line")]
     NoMeasuringRange,
-    /// A measuring range that is not `<number>mm`.
-    #[error("GETINFO measuring range {0:?} is not `<number>mm`")]
+    /// A measuring range that is not `<number>mm` with a finite positive number.
+    #[error("GETINFO measuring range {0:?} is not `<number>mm` with a positive number")]
     BadMeasuringRange(String),
 }
 
@@ -534,11 +534,15 @@ impl IldInfo {
             })
         };
         let range_text = value("Measuring range").ok_or(IldInfoError::NoMeasuringRange)?;
+        // A span the host compares with its rig: `NaN`, `inf` and `-100` parse as numbers, but
+        // a NaN span would pass any tolerance check, so only a finite positive span is one.
         let measuring_range_mm = range_text
             .trim_end_matches("mm")
             .trim()
             .parse::<f64>()
-            .map_err(|_| IldInfoError::BadMeasuringRange(range_text.clone()))?;
+            .ok()
+            .filter(|mm| mm.is_finite() && *mm > 0.0)
+            .ok_or_else(|| IldInfoError::BadMeasuringRange(range_text.clone()))?;
         Ok(IldInfo {
             name: value("Name").unwrap_or_default(),
             serial: value("Serial").unwrap_or_default(),
@@ -619,6 +623,17 @@ mod tests {
             IldInfo::from_reply(&no_range),
             Err(IldInfoError::NoMeasuringRange)
         );
+        for span in ["NaN", "inf", "-100", "0"] {
+            let odd = IldReply {
+                lines: vec![format!("Measuring range: {span}mm")],
+                ..IldReply::default()
+            };
+            assert_eq!(
+                IldInfo::from_reply(&odd),
+                Err(IldInfoError::BadMeasuringRange(format!("{span}mm"))),
+                "{span}"
+            );
+        }
     }
 
     #[test]

@@ -34,22 +34,39 @@ impl HeightGrid {
     /// # Errors
     /// [`SurfaceError`] naming the file and, for CSV, the line and column of a bad number.
     pub fn load(path: &Path, height_scale_mm: f64) -> Result<HeightGrid, SurfaceError> {
-        let extension = path
+        let bytes = std::fs::read(path).map_err(|source| SurfaceError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_bytes(&bytes, path, height_scale_mm)
+    }
+
+    /// Reads a height map from the bytes of the file `origin`, whose extension (`.png` or
+    /// `.csv`) says the format, as [`HeightGrid::load`] does.
+    ///
+    /// # Errors
+    /// As [`HeightGrid::load`], naming `origin`.
+    pub fn from_bytes(
+        bytes: &[u8],
+        origin: &Path,
+        height_scale_mm: f64,
+    ) -> Result<HeightGrid, SurfaceError> {
+        let extension = origin
             .extension()
             .and_then(|e| e.to_str())
             .map(str::to_ascii_lowercase);
         let grid = match extension.as_deref() {
-            Some("png") => Self::load_png(path, height_scale_mm)?,
-            Some("csv") => Self::load_csv(path, height_scale_mm)?,
+            Some("png") => Self::from_png(bytes, origin, height_scale_mm)?,
+            Some("csv") => Self::from_csv(bytes, origin, height_scale_mm)?,
             _ => {
                 return Err(SurfaceError::UnsupportedFile {
-                    path: path.to_path_buf(),
+                    path: origin.to_path_buf(),
                 });
             }
         };
         if grid.cols < 2 || grid.rows < 2 {
             return Err(SurfaceError::HeightMapTooSmall {
-                path: path.to_path_buf(),
+                path: origin.to_path_buf(),
                 cols: grid.cols,
                 rows: grid.rows,
             });
@@ -57,18 +74,15 @@ impl HeightGrid {
         Ok(grid)
     }
 
-    fn load_png(path: &Path, scale: f64) -> Result<HeightGrid, SurfaceError> {
+    fn from_png(bytes: &[u8], path: &Path, scale: f64) -> Result<HeightGrid, SurfaceError> {
         let image_error = |message: String| SurfaceError::Image {
             path: path.to_path_buf(),
             message,
         };
-        let image = image::ImageReader::open(path)
-            .map_err(|source| SurfaceError::Io {
-                path: path.to_path_buf(),
-                source,
-            })?
-            .decode()
-            .map_err(|e| image_error(e.to_string()))?;
+        let image =
+            image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Png)
+                .decode()
+                .map_err(|e| image_error(e.to_string()))?;
         let (cols, rows) = (image.width() as usize, image.height() as usize);
         let heights_mm = match image {
             image::DynamicImage::ImageLuma8(img) => img
@@ -93,10 +107,10 @@ impl HeightGrid {
         })
     }
 
-    fn load_csv(path: &Path, scale: f64) -> Result<HeightGrid, SurfaceError> {
-        let text = std::fs::read_to_string(path).map_err(|source| SurfaceError::Io {
+    fn from_csv(bytes: &[u8], path: &Path, scale: f64) -> Result<HeightGrid, SurfaceError> {
+        let text = std::str::from_utf8(bytes).map_err(|error| SurfaceError::Io {
             path: path.to_path_buf(),
-            source,
+            source: std::io::Error::new(std::io::ErrorKind::InvalidData, error),
         })?;
         let mut heights_mm = Vec::new();
         let (mut cols, mut rows) = (0, 0);
