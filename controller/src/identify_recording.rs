@@ -6,10 +6,11 @@
 //! Period k of the recording is the k-th CoilCommand (its sequence counter `k mod 2^16`) and
 //! the AngleReading with the same counter: the angle at the end of period k. The analysis
 //! pairs the command of period k with the angle at its start (the reading of period k - 1,
-//! zero before the first), as the live run does, and feeds the plans' [`Analyser`]s in the
-//! order they ran. CAN FD's combined frames (CommandStepFd, AnglesDistanceFd) count as the
-//! command and the reading they carry. What the node received is what is analysed: the commands as recorded
-//! (1 uA steps), the angles as sent (1 urad steps). Only open-loop runs can be analysed again
+//! zero before the first), as the live run does, and feeds each plan's
+//! [`Analyser`](crate::identify::Analyser) in the order they ran. CAN FD's combined frames
+//! (CommandStepFd, AnglesDistanceFd) count as the command and the reading they carry. What
+//! the node received is what is analysed: the commands as recorded (1 uA steps), the angles
+//! as sent (1 urad steps). Only open-loop runs can be analysed again
 //! (a closed loop's excitation, the reference, is not on the wire).
 
 use std::io::BufRead;

@@ -64,18 +64,15 @@ fn estimate(result: &Value, axis: SensingAxis, name: &str) -> f64 {
     number(entry, "/value")
 }
 
-fn wrap_deg(d: f64) -> f64 {
-    (d + 180.0).rem_euclid(360.0) - 180.0
-}
-
-#[test]
-fn identify_fit_recovers_a_differing_mirror_refits_its_recording_and_writes_its_twin() {
-    let dir = tempfile::tempdir().expect("a temporary folder");
-    let path = |name: &str| dir.path().join(name).display().to_string();
-    let scene = fixture(SCENE);
-    let measure = [
-        "--points",
-        "8",
+/// `scanhil identify --fsm pty --scene SCENE` with a short plan (0.8 s settling, two blocks of
+/// one cycle, 0.05 A) and `args`.
+fn identify_over_a_pty(scene: &str, args: &[&str]) -> std::process::Output {
+    let mut all = vec![
+        "identify",
+        "--fsm",
+        "pty",
+        "--scene",
+        scene,
         "--settle-s",
         "0.8",
         "--cycles",
@@ -85,26 +82,41 @@ fn identify_fit_recovers_a_differing_mirror_refits_its_recording_and_writes_its_
         "--amplitude",
         "0.05",
     ];
-    let mut args = vec![
-        "identify", "--fsm", "pty", "--scene", &scene, "--fit", "--out",
-    ];
+    all.extend(args);
+    run_scanhil(&all)
+}
+
+fn wrap_deg(d: f64) -> f64 {
+    (d + 180.0).rem_euclid(360.0) - 180.0
+}
+
+#[test]
+fn identify_fit_recovers_a_differing_mirror_refits_its_recording_and_writes_its_twin() {
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let path = |name: &str| dir.path().join(name).display().to_string();
+    let scene = fixture(SCENE);
     let (fit_json, record, twin, plot) = (
         path("fit.json"),
         path("recording"),
         path("twin.json"),
         path("fit.svg"),
     );
-    args.extend([
-        fit_json.as_str(),
-        "--record",
-        &record,
-        "--write-scene",
-        &twin,
-        "--plot",
-        &plot,
-    ]);
-    args.extend(measure);
-    let output = run_scanhil(&args);
+    let output = identify_over_a_pty(
+        &scene,
+        &[
+            "--fit",
+            "--points",
+            "8",
+            "--out",
+            &fit_json,
+            "--record",
+            &record,
+            "--write-scene",
+            &twin,
+            "--plot",
+            &plot,
+        ],
+    );
     assert_success(&output, "scanhil identify --fit");
     let live = read_json(Path::new(&fit_json));
     assert_eq!(
@@ -188,31 +200,21 @@ fn identify_fit_recovers_a_differing_mirror_refits_its_recording_and_writes_its_
     // plan, so its settling residue is common to both).
     let served = |scene: &str, name: &str| {
         let out = path(name);
-        let output = run_scanhil(&[
-            "identify",
-            "--fsm",
-            "pty",
-            "--scene",
+        let output = identify_over_a_pty(
             scene,
-            "--axis",
-            "both",
-            "--from-hz",
-            "5",
-            "--to-hz",
-            "200",
-            "--points",
-            "3",
-            "--settle-s",
-            "0.8",
-            "--cycles",
-            "1",
-            "--blocks",
-            "2",
-            "--amplitude",
-            "0.05",
-            "--out",
-            &out,
-        ]);
+            &[
+                "--axis",
+                "both",
+                "--from-hz",
+                "5",
+                "--to-hz",
+                "200",
+                "--points",
+                "3",
+                "--out",
+                &out,
+            ],
+        );
         assert_success(&output, &format!("scanhil identify --scene {scene}"));
         read_json(Path::new(&out))
     };

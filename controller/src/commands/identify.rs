@@ -9,7 +9,7 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use nalgebra::Complex;
-use scanhil_controller::fit::models::ModelParams;
+use scanhil_controller::fit::models::{ModelParams, SampledModel};
 use scanhil_controller::fit::{AxisFit, CrossTalkFit, Measured, fit_axis, fit_cross_talk, twin};
 use scanhil_controller::identify::{
     Plan, ResponsePoint, SteppedSine, SweptSinePlan, Target, identify_plans,
@@ -181,11 +181,13 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         .map(|p| ControllerSettings::load(p))
         .transpose()?;
     let plant_model = settings.as_ref().map(|s| s.plant).unwrap_or_default();
-    let (period_s, plans, measured, coils_at_end) = match &args.from {
-        Some(dir) => {
-            let (period_s, plans, points) = from_recording(dir)?;
-            (period_s, plans, points, Value::Null)
-        }
+    let Measurement {
+        period_s,
+        plans,
+        points: measured,
+        coils_at_end,
+    } = match &args.from {
+        Some(dir) => from_recording(dir)?,
         None => measure(&args, settings.as_ref(), &plant_model)?,
     };
     let model: ModelResponse = match (args.mode, &settings) {
@@ -314,12 +316,24 @@ fn period_s(args: &Args, settings: Option<&ControllerSettings>) -> anyhow::Resul
     Ok(1.0 / rate_hz)
 }
 
+/// What was measured, live or from a recording.
+struct Measurement {
+    /// The control period, s.
+    period_s: f64,
+    /// The plans, in the order they ran.
+    plans: Vec<Plan>,
+    /// Each plan's points.
+    points: Vec<Vec<ResponsePoint>>,
+    /// How the coils ended (null from a recording).
+    coils_at_end: Value,
+}
+
 /// Measures through the nominal plant or a link; each plan's points and how the coils ended.
 fn measure(
     args: &Args,
     settings: Option<&ControllerSettings>,
     plant_model: &scanhil_controller::plant_model::PlantModel,
-) -> anyhow::Result<(f64, Vec<Plan>, Vec<Vec<ResponsePoint>>, Value)> {
+) -> anyhow::Result<Measurement> {
     let period_s = period_s(args, settings)?;
     anyhow::ensure!(
         args.to_hz < 0.5 / period_s,
@@ -367,11 +381,16 @@ fn measure(
             (points, json!(link.end()))
         }
     };
-    Ok((period_s, plans, points, coils_at_end))
+    Ok(Measurement {
+        period_s,
+        plans,
+        points,
+        coils_at_end,
+    })
 }
 
 /// The period, plans and points of a kept run (`DIR/identify.json`, `DIR/fsm.log`).
-fn from_recording(dir: &Path) -> anyhow::Result<(f64, Vec<Plan>, Vec<Vec<ResponsePoint>>)> {
+fn from_recording(dir: &Path) -> anyhow::Result<Measurement> {
     let result_path = dir.join(RESULT);
     let result = read_json(&result_path, "identification")?;
     let field = |name: &str| {
@@ -397,7 +416,12 @@ fn from_recording(dir: &Path) -> anyhow::Result<(f64, Vec<Plan>, Vec<Vec<Respons
         1.0 / rate_hz,
         &recording.display().to_string(),
     )?;
-    Ok((1.0 / rate_hz, plans, points))
+    Ok(Measurement {
+        period_s: 1.0 / rate_hz,
+        plans,
+        points,
+        coils_at_end: Value::Null,
+    })
 }
 
 fn read_json(path: &Path, what: &'static str) -> anyhow::Result<Value> {
@@ -665,48 +689,46 @@ fn plot_fit(
         };
         let grid = SteppedSine::log_frequencies(first.f_hz, last.f_hz, 400);
         let fitted = fit.params.sampled(period_s);
-        let curve = |model: &dyn Fn(f64) -> Complex<f64>, f: fn(Complex<f64>) -> f64| {
+        let curve = |model: &SampledModel, f: fn(Complex<f64>) -> f64| {
             grid.iter()
-                .map(|&hz| (hz, f(model(hz))))
+                .map(|&hz| (hz, f(model.response(hz))))
                 .collect::<Vec<_>>()
         };
-        let db = |h: Complex<f64>| 20.0 * h.norm().log10();
-        let deg = |h: Complex<f64>| h.arg().to_degrees();
         let name = fit.axis.name();
-        charts.push(panel(
-            &format!("{name}: magnitude ({:?} fitted)", fit.chosen),
-            "|H| [dB]",
-            vec![
-                series(
-                    "measured",
-                    points.iter().map(|p| (p.f_hz, p.magnitude_db)).collect(),
-                    true,
-                ),
-                series("fit", curve(&|hz| fitted.response(hz), db), false),
-                series(
-                    "eq. 4 as printed",
-                    curve(&|hz| nominal.response(hz), db),
-                    false,
-                ),
-            ],
-        ));
-        charts.push(panel(
-            &format!("{name}: phase"),
-            "arg H [deg]",
-            vec![
-                series(
-                    "measured",
-                    points.iter().map(|p| (p.f_hz, p.phase_deg)).collect(),
-                    true,
-                ),
-                series("fit", curve(&|hz| fitted.response(hz), deg), false),
-                series(
-                    "eq. 4 as printed",
-                    curve(&|hz| nominal.response(hz), deg),
-                    false,
-                ),
-            ],
-        ));
+        let panels: [(
+            String,
+            &str,
+            fn(&ResponsePoint) -> f64,
+            fn(Complex<f64>) -> f64,
+        ); 2] = [
+            (
+                format!("{name}: magnitude ({:?} fitted)", fit.chosen),
+                "|H| [dB]",
+                |p| p.magnitude_db,
+                |h| 20.0 * h.norm().log10(),
+            ),
+            (
+                format!("{name}: phase"),
+                "arg H [deg]",
+                |p| p.phase_deg,
+                |h| h.arg().to_degrees(),
+            ),
+        ];
+        for (title, y_label, of_point, of_model) in panels {
+            charts.push(panel(
+                &title,
+                y_label,
+                vec![
+                    series(
+                        "measured",
+                        points.iter().map(|p| (p.f_hz, of_point(p))).collect(),
+                        true,
+                    ),
+                    series("fit", curve(&fitted, of_model), false),
+                    series("eq. 4 as printed", curve(&nominal, of_model), false),
+                ],
+            ));
+        }
         residuals.push(series(
             name,
             fit.residuals

@@ -96,17 +96,25 @@ pub fn scene(
         base_amplifier_hz
     };
     let mut mirror = scene.get("mirror").cloned().unwrap_or_else(|| json!({}));
-    for key in [
-        "dc_gain",
-        "natural_freq_rad_s",
-        "damping_ratio",
-        "delay_s",
-        "alpha",
-        "beta",
-        "x",
-        "y",
-    ] {
-        if let Some(object) = mirror.as_object_mut() {
+    // A fitted axis' own section (and its alias) is replaced; the common values go only when
+    // every axis is fitted, so an axis not measured keeps what the base said of it.
+    let fitted = |axis: SensingAxis| fits.iter().any(|f| f.axis == axis);
+    let mut stale = Vec::new();
+    if SensingAxis::BOTH.iter().all(|&axis| fitted(axis)) {
+        stale.extend(["dc_gain", "natural_freq_rad_s", "damping_ratio", "delay_s"]);
+    }
+    for (axis, alias) in [(SensingAxis::Alpha, "y"), (SensingAxis::Beta, "x")] {
+        if fitted(axis) {
+            stale.extend([axis.name(), alias]);
+        } else {
+            notes.push(format!(
+                "{}: not measured: as the base scene has it (the paper's without one)",
+                axis.name()
+            ));
+        }
+    }
+    if let Some(object) = mirror.as_object_mut() {
+        for key in stale {
             object.remove(key);
         }
     }
@@ -267,6 +275,25 @@ mod tests {
     }
 
     #[test]
+    fn an_axis_not_measured_keeps_what_the_base_says_of_it() {
+        let base = json!({"name": "b", "parts": ["axes"],
+                          "mirror": {"dc_gain": 9.0, "x": {"damping_ratio": 0.05},
+                                     "y": {"dc_gain": 3.0}}});
+        let fits = [fit(SensingAxis::Alpha, differing(9.8, T), 1e-6)];
+        let (written, notes) = scene(Some(&base), "twin", 1e4, &fits, &[]);
+        let mirror = &written["mirror"];
+        assert_eq!(mirror["dc_gain"], 9.0);
+        assert_eq!(mirror["x"], json!({"damping_ratio": 0.05}));
+        assert!(mirror.get("y").is_none(), "{mirror:#}");
+        assert_eq!(mirror["alpha"]["dc_gain"], 9.8);
+        assert_eq!(notes.notes.len(), 1, "{notes:?}");
+        assert!(
+            notes.notes[0].starts_with("beta: not measured"),
+            "{notes:?}"
+        );
+    }
+
+    #[test]
     fn a_delay_not_resolved_beyond_one_period_is_written_as_one_period() {
         assert_eq!(twin_delay_s(1.2e-4, 1e-5, T), T);
         assert_eq!(twin_delay_s(0.9e-4, 1e-6, T), T);
@@ -276,8 +303,8 @@ mod tests {
         let fits = [fit(SensingAxis::Alpha, differing(9.8, 1.2e-4), 1e-5)];
         let (scene, notes) = scene(None, "twin", 1e4, &fits, &[]);
         assert_eq!(scene["mirror"]["alpha"]["delay_s"], T);
-        assert_eq!(notes.notes.len(), 1, "{notes:?}");
-        assert!(notes.notes[0].starts_with("alpha: the delay"), "{notes:?}");
+        assert_eq!(notes.notes.len(), 2, "{notes:?}");
+        assert!(notes.notes[1].starts_with("alpha: the delay"), "{notes:?}");
     }
 
     #[test]
