@@ -26,6 +26,15 @@ use scanhil_report::{Axis, Chart, Series, draw_charts};
 use scanhil_scene::json_file;
 use serde_json::{Value, json};
 
+/// One Bode panel of the fit plot: its title, its y label, and the measured point's and a
+/// response's value in it.
+type BodePanel = (
+    String,
+    &'static str,
+    fn(&ResponsePoint) -> f64,
+    fn(Complex<f64>) -> f64,
+);
+
 /// The model's response at a frequency (Hz), drawn beside the measurement.
 type ModelResponse = Box<dyn Fn(f64) -> Complex<f64>>;
 
@@ -695,12 +704,7 @@ fn plot_fit(
                 .collect::<Vec<_>>()
         };
         let name = fit.axis.name();
-        let panels: [(
-            String,
-            &str,
-            fn(&ResponsePoint) -> f64,
-            fn(Complex<f64>) -> f64,
-        ); 2] = [
+        let panels: [BodePanel; 2] = [
             (
                 format!("{name}: magnitude ({:?} fitted)", fit.chosen),
                 "|H| [dB]",
