@@ -9,8 +9,9 @@ OUT holds three output folders of `scanhil scan fixtures/scenarios/vcan-small.js
 
 Checks:
 1. The capture, read by cantools' candump log parser: every line is a frame on vcan0, every frame
-   decodes with the DBC, wall-clock stamps never go back; CoilCommand.Seq, Step.Step and
-   AngleReading.Seq run 0, 1, ..., N-1 (N = the report's periods) without a gap, the Distance
+   decodes with the DBC, wall-clock stamps never go back; Step.Step and AngleReading.Seq run
+   0, 1, ..., N-1 (N = the report's periods) without a gap, CoilCommand.Seq 0, 1, ..., N with the
+   last one the zero (0 A, 0 A) that ends a complete run (coils at zero at every end), the Distance
    frames' IldCounter counts up by one (18 bits) and there is one per sensor sample the emulator
    sent; the last frame is the node's StatusFsm(ready) that ends the run.
 2. The bus carried exactly what the controller recorded in vcan/fsm.log (its candump log of the
@@ -32,12 +33,17 @@ Checks:
      counters, zero when the sensor is on CAN) and emulator.summary.link.frames_sent (the Distance
      frames travel on the mirror's link on CAN, on their own line with ILD), sensor_setup and
      emulator.summary.sensor.commands_answered (the ILD line is configured over its ASCII
-     commands; on CAN there is none), and run_time_s, the
-     one wall-clock field of a lockstep report (timing.controller and timing.emulator are null,
+     commands; on CAN there is none), and the wall-clock fields of a lockstep report: run_time_s
+     and each scene part's measured cost per period (emulator.summary.parts) (timing.controller and timing.emulator are null,
      and are compared as such).
-4. The sensor's data is the same on both of its transports: the (IldRaw, IldCounter) pairs of the
-   Distance frames on vcan0 equal the (value, counter) output cycles of pty-ild/sensor.ild, the
-   raw ILD RS422 stream, as `scanhil decode --format ild` reads it.
+4. The sensor's data is the same on both of its transports: the output cycles of pty-ild/sensor.ild,
+   the raw ILD RS422 stream as `scanhil decode --format ild` reads it, carry the values the
+   pty-ild report's sensor_setup.output_values names (GETOUTINFO_RS422's order): their DIST1
+   values equal the IldRaw of the Distance frames on vcan0, and their COUNTER values (when the
+   rig streams the counter) the frames' IldCounter. The paper's bench streams the distance alone
+   (distance and counter do not fit 691 200 baud at 20 kHz), so the host counts the cycles and
+   places the first at the counter the emulator declares: samples.sensor_clock.counter_offset
+   and emulator.summary.sensor.baud (the ILD line's) are transport fields there too.
 5. Both runs ended cleanly: complete, every period done, no sequence gap or malformed frame seen by
    the controller, the emulator finished by itself (exit status 0, not killed) on every transport.
 
@@ -65,16 +71,26 @@ BYTE_IDENTICAL = [
     "profiles.csv",
 ]
 # Report fields that describe or count the transport, per compared folder (JSON paths, prefixes).
+# The wall-clock figures of a lockstep report: run_time_s and each scene part's measured cost
+# per period (emulator.summary.parts, measured before the run).
+WALL_CLOCK_FIELDS = [
+    ("run_time_s",),
+    ("emulator", "summary", "parts", "plant_us_per_period"),
+    ("emulator", "summary", "parts", "bare_us_per_period"),
+    ("emulator", "summary", "parts", "parts", "*", "us_per_period"),
+]
 TRANSPORT_FIELDS = {
-    "pty-can": [("scenario", "links", "fsm"), ("run_time_s",)],
+    "pty-can": [*WALL_CLOCK_FIELDS, ("scenario", "links", "fsm")],
     "pty-ild": [
-        ("run_time_s",),
+        *WALL_CLOCK_FIELDS,
         ("scenario", "links", "fsm"),
         ("scenario", "links", "sensor"),
         ("links", "sensor"),
         ("sensor_setup",),
         ("emulator", "summary", "link", "frames_sent"),
         ("emulator", "summary", "sensor", "commands_answered"),
+        ("emulator", "summary", "sensor", "baud"),
+        ("samples", "sensor_clock", "counter_offset"),
     ],
 }
 CANDUMP_LINE = re.compile(r"^\((\d+\.\d+)\) (\S+) ([0-9A-F]{3}|[0-9A-F]{8})#([0-9A-F]*)$")
@@ -126,11 +142,16 @@ def check_capture(out, db, report, summary):
         signals.setdefault(message.name, []).append(decoded)
 
     periods = report["periods"]["planned"]
-    for name, signal, modulus in [("CoilCommand", "Seq", 1 << 16), ("Step", "Step", 1 << 32),
-                                  ("AngleReading", "Seq", 1 << 16)]:
+    # One CoilCommand per period and the final zero of a complete run (coils at zero at every end).
+    for name, signal, modulus, count in [("CoilCommand", "Seq", 1 << 16, periods + 1),
+                                         ("Step", "Step", 1 << 32, periods),
+                                         ("AngleReading", "Seq", 1 << 16, periods)]:
         values = [s[signal] for s in signals.get(name, [])]
-        check(len(values) == periods, f"{len(values)} {name} frames for {periods} periods")
+        check(len(values) == count, f"{len(values)} {name} frames for {periods} periods (expected {count})")
         gapless(values, modulus, f"{name}.{signal}", start=0)
+    final = signals.get("CoilCommand", [{}])[-1]
+    check(final.get("CurrentA") == 0 and final.get("CurrentB") == 0,
+          f"the last CoilCommand on the bus is not the zero of the run's end: {final}")
     distances = [(s["IldRaw"], s["IldCounter"]) for s in signals.get("Distance", [])]
     counters = [counter for _, counter in distances]
     gapless(counters, 1 << 18, "Distance.IldCounter")
@@ -162,18 +183,27 @@ def check_capture(out, db, report, summary):
     return distances
 
 
-def check_ild_stream(scanhil, capture, distances):
-    """The ILD stream's (value, counter) cycles against the Distance frames' (IldRaw, IldCounter)."""
+def check_ild_stream(scanhil, capture, distances, output_values):
+    """The ILD stream's cycles (laid out as output_values says) against the Distance frames'
+    (IldRaw, IldCounter): DIST1 against IldRaw, COUNTER (when streamed) against IldCounter."""
     result = subprocess.run([scanhil, "decode", str(capture), "--format", "ild"],
                             capture_output=True, text=True, check=False)
     if not check(result.returncode == 0, f"scanhil decode --format ild {capture}: {result.stderr.strip()}"):
         return
     words = [json.loads(line) for line in result.stdout.splitlines()]
-    check(all(w["index"] == i % 2 for i, w in enumerate(words)) and len(words) % 2 == 0,
-          f"{capture}: the cycles are not (value, counter) pairs")
-    cycles = [(words[i]["raw"], words[i + 1]["raw"]) for i in range(0, len(words) - 1, 2)]
-    check(cycles == distances, f"{capture}: {len(cycles)} ILD cycles differ from the {len(distances)} Distance frames on vcan0")
-    print(f"vcan_loop_check: sensor: the {len(cycles)} (value, counter) cycles of the ILD stream equal the Distance frames on vcan0")
+    per_cycle = len(output_values)
+    laid_out = (per_cycle > 0 and "DIST1" in output_values and len(words) % per_cycle == 0
+                and all(w["index"] == i % per_cycle for i, w in enumerate(words)))
+    if not check(laid_out, f"{capture}: the cycles are not {' '.join(output_values)} each"):
+        return
+    cycles = [words[i:i + per_cycle] for i in range(0, len(words), per_cycle)]
+    dist = output_values.index("DIST1")
+    counter = output_values.index("COUNTER") if "COUNTER" in output_values else None
+    streamed = [(c[dist]["raw"], c[counter]["raw"] if counter is not None else None) for c in cycles]
+    expected = [(raw, count if counter is not None else None) for raw, count in distances]
+    what = "(value, counter)" if counter is not None else "distance (no counter)"
+    check(streamed == expected, f"{capture}: {len(cycles)} {what} ILD cycles differ from the {len(distances)} Distance frames on vcan0")
+    print(f"vcan_loop_check: sensor: the {len(cycles)} {what} cycles of the ILD stream equal the Distance frames on vcan0")
 
 
 def differences(a, b, path=()):
@@ -186,6 +216,11 @@ def differences(a, b, path=()):
             yield from differences(x, y, path + (i,))
     elif a != b or type(a) is not type(b):
         yield path
+
+
+def within(path, allowed):
+    """Whether a JSON path lies under an allowed prefix ("*" matches any key or index)."""
+    return len(path) >= len(allowed) and all(a in ("*", p) for p, a in zip(path, allowed))
 
 
 def check_run(name, report):
@@ -212,7 +247,8 @@ def main():
     summaries = {name: check_run(name, report) for name, report in reports.items()}
 
     distances = check_capture(out, db, reports["vcan"], summaries["vcan"])
-    check_ild_stream(scanhil, out / "pty-ild" / "sensor.ild", distances)
+    output_values = (reports["pty-ild"].get("sensor_setup") or {}).get("output_values") or []
+    check_ild_stream(scanhil, out / "pty-ild" / "sensor.ild", distances, output_values)
 
     check((out / "vcan" / "fsm.log").read_bytes() == (out / "pty-can" / "fsm.log").read_bytes(),
           "fsm.log differs between socketcan:vcan0 and the pty link")
@@ -222,7 +258,7 @@ def main():
             check(len(first) > 0, f"vcan/{file} is empty")
             check(first == (out / other / file).read_bytes(), f"{file} differs between vcan and {other}")
         found = list(differences(reports["vcan"], reports[other]))
-        unexpected = [p for p in found if not any(p[:len(a)] == a for a in allowed)]
+        unexpected = [p for p in found if not any(within(p, a) for a in allowed)]
         check(not unexpected, f"report.json: vcan and {other} differ at {['/'.join(map(str, p)) for p in unexpected]}")
         print(f"vcan_loop_check: vcan vs {other}: {', '.join(BYTE_IDENTICAL)} identical; report.json identical "
               f"but for {sorted({'/'.join(map(str, p)) for p in found})}")

@@ -4,7 +4,9 @@
 //! - `control_rate_hz`: the loop rate the mirror node runs at;
 //! - `scanner`: the mechanical setup (paper eq. 1-3's `y_FSM`, `z_FSM`, `alpha` and the
 //!   receiver) and the calibration of the angle sensor and the distance;
-//! - `sensor`: the ILD 2300's measuring rate and range, or `null` for a mirror-only rig;
+//! - `sensor`: the ILD 2300's measuring rate and range, the extra values it sends after each
+//!   distance and the baud rate of its RS422 line (refused when they do not fit it), or `null`
+//!   for a mirror-only rig;
 //! - `mirror` (optional): the coils' resistance, the power limit and the cross-talk, from which
 //!   the host estimates a trajectory's coil power before a run ([`crate::power_budget`]);
 //! - `bus` (optional): the CAN bus the mirror node is on (bit rate, transit), from which
@@ -18,8 +20,9 @@
 use std::path::{Path, PathBuf};
 
 use scanhil_geometry::ScannerSetup;
-use scanhil_protocol::ild::MeasuringRange;
-use scanhil_protocol::ild::command::MEASURING_RATES_KHZ;
+use scanhil_protocol::ild::command::{AddValue, AddValueSet, BAUD_RATES_UNCHECKED, MeasuringRate};
+use scanhil_protocol::ild::stream::{FACTORY_BAUD, check_baud};
+use scanhil_protocol::ild::{IldOutputInfo, MeasuringRange};
 use serde::{Deserialize, Serialize};
 
 use crate::imaging::reconstruct::ScanSample;
@@ -232,21 +235,50 @@ impl Calibration {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RigSensor {
-    /// Measuring rate, Hz: one of the ILD 2300's rates (1.5, 2.5, 5, 10, 20, 30, 49.14 kHz).
+    /// Measuring rate, Hz: one of the ILD 2300's rates (1.5, 2.5, 5, 10, 20, 30, 49.14 kHz;
+    /// `MEASRATE` words the last `49`).
     pub measuring_rate_hz: f64,
     /// Start of the measuring range (SMR), mm from the sensor's reference.
     pub range_start_mm: f64,
     /// Length of the measuring range (MR), mm.
     pub range_span_mm: f64,
+    /// The extra values sent after each distance (`OUTADD_RS422`; default none): with
+    /// `counter`, samples are placed by the sensor's measured-value counter, without it by
+    /// their arrival alone.
+    #[serde(default)]
+    pub extra_values: AddValueSet,
+    /// The baud rate of the sensor's RS422 line (default: the factory 691 200). The values per
+    /// cycle must fit it (the manual's rule `BR > 33 x MR x m`): checked when the rig loads.
+    #[serde(default = "factory_baud")]
+    pub baud: u32,
+}
+
+fn factory_baud() -> u32 {
+    FACTORY_BAUD
 }
 
 impl RigSensor {
-    /// The ILD 2300-100 at 20 kHz, as in the paper.
+    /// The ILD 2300-100 at 20 kHz, as in the paper: the distance alone at the factory baud
+    /// rate (all that 691 200 baud carries at 20 kHz).
     pub const ILD2300_100_AT_20_KHZ: RigSensor = RigSensor {
         measuring_rate_hz: 20_000.0,
         range_start_mm: 70.0,
         range_span_mm: 100.0,
+        extra_values: AddValueSet::NONE,
+        baud: FACTORY_BAUD,
     };
+
+    /// Whether each distance comes with the sensor's measured-value counter.
+    #[must_use]
+    pub fn sends_counter(&self) -> bool {
+        self.extra_values.contains(AddValue::Counter)
+    }
+
+    /// The values of an output cycle: the distance, then the extra values.
+    #[must_use]
+    pub fn output(&self) -> IldOutputInfo {
+        IldOutputInfo::distance_then(self.extra_values)
+    }
 
     /// The measuring range, for converting raw values to mm.
     #[must_use]
@@ -370,15 +402,32 @@ impl Rig {
 
 fn check_sensor(sensor: &RigSensor) -> Result<(), (&'static str, String)> {
     let rate = sensor.measuring_rate_hz;
-    if !MEASURING_RATES_KHZ
-        .iter()
-        .any(|khz| (khz * 1e3 - rate).abs() < 1e-6)
-    {
+    if MeasuringRate::from_hz(rate).is_none() {
         return Err((
             "sensor.measuring_rate_hz",
-            format!("{rate} Hz is not an ILD 2300 rate (kHz: {MEASURING_RATES_KHZ:?})"),
+            format!(
+                "{rate} Hz is not an ILD 2300 rate (MEASRATE {} kHz, the last 49.14)",
+                MeasuringRate::words()
+            ),
         ));
     }
+    if !BAUD_RATES_UNCHECKED.contains(&sensor.baud) {
+        return Err((
+            "sensor.baud",
+            format!(
+                "{} is not an ILD 2300 baud rate (BAUDRATE {BAUD_RATES_UNCHECKED:?})",
+                sensor.baud
+            ),
+        ));
+    }
+    let output = sensor.output();
+    check_baud(
+        rate,
+        &output.words(),
+        output.values.len() as u32,
+        sensor.baud,
+    )
+    .map_err(|shortfall| ("sensor.extra_values", shortfall.to_string()))?;
     if !(sensor.range_start_mm.is_finite() && sensor.range_start_mm >= 0.0) {
         return Err((
             "sensor.range_start_mm",
@@ -428,6 +477,45 @@ mod tests {
         .to_string();
         assert!(error.contains("sensor.measuring_rate_hz"), "{error}");
         assert!(error.contains("12000"), "{error}");
+    }
+
+    #[test]
+    fn values_that_do_not_fit_the_sensors_line_are_refused_with_the_numbers() {
+        let sensor = |extra: &str, rate: u32, baud: u32| {
+            format!(
+                r#"{{"name": "r", "control_rate_hz": 20000,
+                    "sensor": {{"measuring_rate_hz": {rate}, "range_start_mm": 70,
+                                "range_span_mm": 100, "extra_values": {extra}, "baud": {baud}}}}}"#
+            )
+        };
+        let error = parse(&sensor(r#"["counter"]"#, 20_000, 691_200))
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            error,
+            "rig.json: field `sensor.extra_values`: the ILD line at 691200 baud cannot carry 2 \
+             value(s) per cycle (DIST1 COUNTER) at 20 kHz: the manual's rule BR > 33 x MR x m / \
+             ODR needs more than 1320000 baud"
+        );
+        assert!(parse(&sensor(r#"["counter"]"#, 20_000, 921_600)).is_err());
+        let fits = parse(&sensor(r#"["counter"]"#, 10_000, 691_200)).unwrap();
+        assert!(fits.sensor.unwrap().sends_counter());
+        let alone = parse(&sensor("[]", 20_000, 691_200)).unwrap();
+        assert!(!alone.sensor.unwrap().sends_counter());
+        let error = parse(&sensor("[]", 20_000, 500_000))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            error.contains("sensor.baud") && error.contains("500000"),
+            "{error}"
+        );
+        let error = parse(&sensor(r#"["speed"]"#, 20_000, 691_200))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            error.contains("`speed` is not an ILD 2300 extra value"),
+            "{error}"
+        );
     }
 
     #[test]

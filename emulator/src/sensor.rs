@@ -16,15 +16,11 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use scanhil_protocol::ild::value::{DIGITAL_MAX, RAW_MAX};
-use scanhil_protocol::ild::{IldError, IldValue, MeasuringRange};
+use scanhil_protocol::ild::{IldError, IldValue, MeasuringRange, MeasuringRate};
 use serde::{Deserialize, Serialize};
 
 use crate::optics::OpticalOutcome;
 
-/// The measuring rates the ILD 2300 offers (`MEASRATE`), Hz.
-pub const MEASURING_RATES_HZ: [f64; 7] = [
-    1_500.0, 2_500.0, 5_000.0, 10_000.0, 20_000.0, 30_000.0, 49_140.0,
-];
 /// The sensor's default measuring rate, Hz.
 pub const DEFAULT_MEASURING_RATE_HZ: f64 = 20_000.0;
 /// Default distance noise (rms), um: the resolution quoted for the ILD 2300-100.
@@ -48,7 +44,7 @@ fn default_range() -> MeasuringRange {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SensorConfig {
-    /// Measuring rate, Hz: one of [`MEASURING_RATES_HZ`].
+    /// Measuring rate, Hz: one of the ILD 2300's ([`MeasuringRate`]).
     #[serde(default = "default_rate")]
     pub measuring_rate_hz: f64,
     /// Distance noise (rms), um; used when the scene lists `sensor_noise`.
@@ -139,10 +135,7 @@ impl Ild2300 {
                 requirement,
             })
         };
-        if !MEASURING_RATES_HZ
-            .iter()
-            .any(|r| (r - config.measuring_rate_hz).abs() < 1e-6)
-        {
+        if MeasuringRate::from_hz(config.measuring_rate_hz).is_none() {
             return bad(
                 "measuring_rate_hz",
                 config.measuring_rate_hz,

@@ -2,7 +2,9 @@
 //! replies at the host end.
 
 use scanhil_emulator::serve::sensor_commands::IldSettings;
-use scanhil_protocol::ild::command::{IldCommandError, LASER_POWER_COMMAND_UNCHECKED};
+use scanhil_protocol::ild::command::{
+    ECHO_DONE_SUFFIX, IldCommandError, LASER_POWER_COMMAND_UNCHECKED, MeasuringRate,
+};
 use scanhil_protocol::ild::{IldCommand, IldInfo, IldReply, IldReplyParser};
 use scanhil_protocol::link::IldRequest;
 use scanhil_protocol::link::ild::MAX_COMMAND_LINE;
@@ -25,7 +27,7 @@ const COMMAND_NAMES: [&str; 8] = [
 /// it was sent (unless the echoed line holds the prompt `->`, which no reply parser can tell
 /// from the end of the reply).
 pub fn commands(data: &[u8]) {
-    let mut sensor = IldSettings::new(20_000.0, 100.0);
+    let mut sensor = IldSettings::new(MeasuringRate::Khz20, 100.0, 691_200);
     for raw in data.split(|&b| b == b'\r' || b == b'\n') {
         let line = String::from_utf8_lossy(raw).trim().to_owned();
         if line.is_empty() {
@@ -46,7 +48,10 @@ pub fn commands(data: &[u8]) {
                 "{line:?} parsed as {command:?}, which encodes as {encoded:?}"
             );
         }
-        let reply = sensor.answer(&IldRequest { line, command });
+        let reply = sensor.answer(&IldRequest {
+            line: line.clone(),
+            command,
+        });
         if reply
             .echo
             .as_deref()
@@ -54,21 +59,27 @@ pub fn commands(data: &[u8]) {
         {
             continue;
         }
-        let read = IldReplyParser::new(reply.echo.is_some()).push(reply.encode().as_bytes());
+        let read = IldReplyParser::new(&line).push(reply.encode().as_bytes());
         assert_eq!(read, vec![reply.clone()], "the host misreads {reply:?}");
     }
 }
 
-/// Bytes a sensor sends the host after a command (byte 0: whether echo is on): the same replies
-/// whole and byte by byte; a `GETINFO` reply read only with a measuring range the host can
-/// compare; a query answer only as a set command of the name asked for.
+/// Bytes a sensor sends the host after a command (byte 0, bit 0: echo is on, so the host sent
+/// the command the first line echoes, `<command>` or `<command> ok`; else a command no line
+/// repeats): the same replies whole and byte by byte; a `GETINFO` reply read only with a
+/// measuring range the host can compare; a query answer only as a set command of the name
+/// asked for.
 pub fn replies(data: &[u8]) {
     let Some((&first, bytes)) = data.split_first() else {
         return;
     };
-    let echo = first & 1 == 1;
-    let whole = IldReplyParser::new(echo).push(bytes);
-    let mut parser = IldReplyParser::new(echo);
+    let sent = if first & 1 == 1 {
+        echoed_command(bytes)
+    } else {
+        String::new()
+    };
+    let whole = IldReplyParser::new(&sent).push(bytes);
+    let mut parser = IldReplyParser::new(&sent);
     let byte_by_byte: Vec<IldReply> = bytes.iter().flat_map(|&b| parser.push(&[b])).collect();
     assert_eq!(whole, byte_by_byte, "chunking changed the replies");
     for reply in &whole {
@@ -86,4 +97,18 @@ pub fn replies(data: &[u8]) {
             }
         }
     }
+}
+
+/// The command the first line of `bytes` echoes: the line without [`ECHO_DONE_SUFFIX`].
+fn echoed_command(bytes: &[u8]) -> String {
+    let first = bytes
+        .split(|&b| b == b'\r' || b == b'\n')
+        .next()
+        .unwrap_or_default();
+    let first = String::from_utf8_lossy(first);
+    let first = first.trim();
+    first
+        .strip_suffix(ECHO_DONE_SUFFIX)
+        .unwrap_or(first)
+        .to_owned()
 }

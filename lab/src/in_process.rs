@@ -27,7 +27,7 @@ use scanhil_controller::run::output_failures::OutputFailures;
 use scanhil_controller::run::pairing::SensorClock;
 use scanhil_controller::run::plan::{PlanSummary, ScanPlan};
 use scanhil_controller::run::scenario::{NodeLink, Scenario, TimingMode};
-use scanhil_controller::run::sensor_link::IldSampleDecoder;
+use scanhil_controller::run::sensor_link::{IldSampleDecoder, SampleLayout};
 use scanhil_controller::run::sensor_setup::SensorSetupReport;
 use scanhil_controller::run::{EmulatedDevices, ScanEnd};
 use scanhil_emulator::part_cost::{self, CostTiming};
@@ -36,9 +36,11 @@ use scanhil_emulator::sensor::IldSample;
 use scanhil_emulator::sensor_faults::SensorFaultModel;
 use scanhil_emulator::serve::lockstep_node::{LockstepNode, NodeReply, NodeSend};
 use scanhil_emulator::serve::mirror_node::MirrorNode;
+use scanhil_emulator::serve::sensor_commands::IldSettings;
 use scanhil_emulator::serve::sensor_port::SensorClockTrack;
 use scanhil_emulator::serve::{DEFAULT_HEARTBEAT_HZ, load_plant};
 use scanhil_protocol::can::CanFrame;
+use scanhil_protocol::ild::MeasuringRate;
 use scanhil_protocol::ild::stream::encode_cycle;
 use scanhil_protocol::link::{CanCapture, CaptureClock, VirtualClock};
 use scanhil_protocol::plant_units::SensingPair;
@@ -196,7 +198,19 @@ pub fn run_probed(
     }
     // Held to the end of the run, as `scanhil scan` holds its folder.
     let _folder = out_dir.map(OutputFolder::claim).transpose()?;
-    let mut transport = Transport::new(out_dir, serves_sensor, measuring_rate_hz)?;
+    let sensor_settings = match (serves_sensor, scenario.rig.sensor) {
+        (true, Some(sensor)) => Some(
+            IldSettings::new(
+                MeasuringRate::from_hz(sensor.measuring_rate_hz)
+                    .context("the rig's sensor rate (checked when it loaded)")?,
+                sensor.range_span_mm,
+                sensor.baud,
+            )
+            .with_extras(sensor.extra_values),
+        ),
+        _ => None,
+    };
+    let mut transport = Transport::new(out_dir, sensor_settings, measuring_rate_hz)?;
     transport.faults = LinkFaults::new(&scenario.faults, scenario.seed, period_s);
     // Injected frame faults are survived as over a link: a reading that does not come gets
     // its Step sent again, up to the watchdog's periods.
@@ -284,14 +298,24 @@ pub fn run_probed(
             "timing": serde_json::Value::Null,
         },
     });
-    let sensor_clock = transport
+    // The declared clock: counter 0's instant, offset by the first cycle's counter when the
+    // cycles carry no counter (the host counts them from there), as `scanhil scan` reads the
+    // emulator's.
+    let sends_counter = scenario
+        .rig
         .sensor
-        .as_ref()
-        .and_then(|sensor| sensor.track.counter_zero_s)
-        .map(|counter_zero_s| SensorClock {
-            measuring_rate_hz,
-            counter_zero_s,
-        });
+        .is_some_and(|sensor| sensor.sends_counter());
+    let sensor_clock = transport.sensor.as_ref().and_then(|sensor| {
+        let counter_offset = if sends_counter {
+            0
+        } else {
+            u64::from(sensor.track.first_sent_counter?)
+        };
+        Some(SensorClock {
+            counter_offset,
+            ..SensorClock::new(measuring_rate_hz, sensor.track.counter_zero_s?)
+        })
+    });
     let frame_faults = transport.faults.as_ref().map(LinkFaults::report);
     let wire = transport.wire;
     let sensor = transport.finish()?;
@@ -344,8 +368,11 @@ struct Transport {
     wire: WireCounts,
 }
 
-/// The ILD stream in memory: the emulated sensor's side (its clock) and the host's decoding.
+/// The ILD stream in memory: the emulated sensor's side (its settings and clock) and the
+/// host's decoding. No line paces it: in process the cycles go to the host's decoder at once
+/// (arrivals play no part, the sensor declares its clock).
 struct MemorySensor {
+    settings: IldSettings,
     track: SensorClockTrack,
     capture: Option<BufWriter<File>>,
     decoder: IldSampleDecoder,
@@ -354,7 +381,7 @@ struct MemorySensor {
 impl Transport {
     fn new(
         out_dir: Option<&Path>,
-        serves_sensor: bool,
+        sensor_settings: Option<IldSettings>,
         measuring_rate_hz: f64,
     ) -> anyhow::Result<Transport> {
         let clock = VirtualClock::default();
@@ -370,7 +397,7 @@ impl Transport {
                 ))
             })
             .transpose()?;
-        let sensor = if serves_sensor {
+        let sensor = if let Some(settings) = sensor_settings {
             let capture = out_dir
                 .map(|dir| {
                     let path = dir.join(output::SENSOR_CAPTURE);
@@ -379,10 +406,13 @@ impl Transport {
                         .with_context(|| format!("creating {}", path.display()))
                 })
                 .transpose()?;
+            let layout = SampleLayout::of(&settings.output_info())
+                .context("the emulated sensor sends the distance")?;
             Some(MemorySensor {
+                settings,
                 track: SensorClockTrack::new(measuring_rate_hz),
                 capture,
-                decoder: IldSampleDecoder::new(),
+                decoder: IldSampleDecoder::new(layout),
             })
         } else {
             None
@@ -490,15 +520,19 @@ impl Transport {
         }
     }
 
-    /// The sensor's samples as the ILD stream sends them (a distance and its counter per
-    /// output cycle), recorded and decoded on the host's side.
+    /// The sensor's samples as the ILD stream sends them (a cycle of the values the settings
+    /// select per sample), recorded and decoded on the host's side.
     fn emit_samples(&mut self, samples: &[IldSample]) -> anyhow::Result<()> {
         let Some(sensor) = &mut self.sensor else {
             return Ok(());
         };
         for sample in samples {
-            sensor.track.count(sample, true);
-            let bytes = encode_cycle(&[sample.value.raw(), sample.counter]);
+            let Some(values) = sensor.settings.cycle(sample) else {
+                continue;
+            };
+            sensor.track.measured(sample);
+            sensor.track.sent(sample.counter);
+            let bytes = encode_cycle(&values);
             if let Some(capture) = &mut sensor.capture {
                 capture
                     .write_all(&bytes)

@@ -64,7 +64,7 @@ fn ild_cycle(c: &mut Criterion) {
         let uri: LinkUri = format!("ild:{}", pair.slave_path().display())
             .parse()
             .expect("a valid URI");
-        let device = IldLink::open_pty(pair, Role::Device).expect("device end");
+        let device = IldLink::open_pty(pair, 691_200, Role::Device).expect("device end");
         (IldLink::open(&uri, Role::Host).expect("host end"), device)
     });
     host.set_values_per_cycle(2);

@@ -4,7 +4,9 @@
 use proptest::prelude::*;
 use scanhil_protocol::can::{CanFrame, CanId, FD_LENGTHS, FrameFormat};
 use scanhil_protocol::candump::{self, LogEntry, Timestamp};
-use scanhil_protocol::ild::command::{AddValue, IldReply, ReplyCode};
+use scanhil_protocol::ild::command::{
+    AddValue, AddValueSet, IldOutputInfo, IldReply, MeasuringRate, ReplyCode,
+};
 use scanhil_protocol::ild::{IldCommand, IldDecoder, IldReplyParser, IldValue, encode_cycle};
 use scanhil_protocol::message::{
     AngleReading, CoilCommand, Distance, Fault, FaultKind, I24_MAX, Message, NodeId, NodeState,
@@ -307,18 +309,16 @@ proptest! {
         let mut decoder = IldDecoder::new();
         let _ = decoder.push(&bytes);
         let _ = decoder.finish();
-        let _ = IldReplyParser::new(true).push(&bytes);
+        let _ = IldReplyParser::new("GETINFO").push(&bytes);
+        let _ = IldOutputInfo::from_reply(&IldReply { lines: vec![String::from_utf8_lossy(&bytes).into_owned()], ..IldReply::default() });
         let _ = IldCommand::parse(&String::from_utf8_lossy(&bytes));
     }
 
     #[test]
     fn ild_commands_round_trip(
-        rate in prop::sample::select(scanhil_protocol::ild::command::MEASURING_RATES_KHZ.to_vec()),
+        rate in prop::sample::select(MeasuringRate::ALL.to_vec()),
         on in any::<bool>(),
-        adds in prop::collection::vec(prop::sample::select(vec![
-            AddValue::Shutter, AddValue::Counter, AddValue::Timestamp,
-            AddValue::Temperature, AddValue::Intensity, AddValue::State,
-        ]), 0..4),
+        adds in prop::collection::vec(prop::sample::select(AddValue::ALL.to_vec()), 0..4),
         baud in prop::sample::select(scanhil_protocol::ild::command::BAUD_RATES_UNCHECKED.to_vec()),
     ) {
         for command in [
@@ -326,7 +326,8 @@ proptest! {
             IldCommand::MeasRate(Some(rate)),
             IldCommand::Echo(Some(on)),
             IldCommand::OutDistRs422(Some(on)),
-            IldCommand::OutAddRs422(Some(adds.clone())),
+            IldCommand::OutAddRs422(Some(AddValueSet::of(&adds))),
+            IldCommand::GetOutInfoRs422,
             IldCommand::Baudrate(Some(baud)),
             IldCommand::Baudrate(None),
         ] {
@@ -345,6 +346,6 @@ proptest! {
             warnings: vec![],
             error: error.map(|(code, text)| ReplyCode { code, text }),
         };
-        prop_assert_eq!(IldReplyParser::new(true).push(reply.encode().as_bytes()), vec![reply]);
+        prop_assert_eq!(IldReplyParser::new("GETINFO").push(reply.encode().as_bytes()), vec![reply]);
     }
 }

@@ -7,7 +7,7 @@ use std::fmt::Write;
 use scanhil_protocol::bus_load::{Bitrates, FrameShape};
 use scanhil_protocol::can::hex_upper;
 use scanhil_protocol::candump::{LogEntry, Timestamp};
-use scanhil_protocol::ild::command::{AddValue, IldReply};
+use scanhil_protocol::ild::command::{AddValue, AddValueSet, IldReply, MeasuringRate};
 use scanhil_protocol::ild::{IldCommand, IldError, IldValue, MeasuringRange, encode_cycle};
 use scanhil_protocol::message::{
     AngleReading, CoilCommand, Distance, Fault, FaultKind, Message, NodeId, NodeState, Status,
@@ -165,11 +165,13 @@ fn ild_stream_and_commands() {
     );
     for command in [
         IldCommand::GetInfo,
-        IldCommand::MeasRate(Some(20.0)),
+        IldCommand::MeasRate(Some(MeasuringRate::Khz20)),
+        IldCommand::MeasRate(Some(MeasuringRate::Khz49)),
         IldCommand::MeasRate(None),
         IldCommand::Echo(Some(true)),
         IldCommand::OutDistRs422(Some(true)),
-        IldCommand::OutAddRs422(Some(vec![AddValue::Counter])),
+        IldCommand::OutAddRs422(Some(AddValueSet::of(&[AddValue::Counter]))),
+        IldCommand::GetOutInfoRs422,
         IldCommand::Baudrate(Some(691_200)),
         IldCommand::Output(Some("RS422".to_owned())),
     ] {

@@ -5,7 +5,9 @@ mod support;
 
 use std::time::{Duration, Instant};
 
-use scanhil_protocol::ild::command::{IldCommand, IldCommandError, IldReply};
+use scanhil_protocol::ild::command::{
+    ECHO_DONE_SUFFIX, IldCommand, IldCommandError, IldReply, LineEnding, MeasuringRate,
+};
 use scanhil_protocol::ild::stream::encode_cycle;
 use scanhil_protocol::ild::{IldError, IldValue};
 use scanhil_protocol::link::{ByteCapture, IldLink, LinkError, LinkUri, PtyPair, Role, SerialLine};
@@ -20,7 +22,7 @@ fn host_and_device() -> (IldLink, IldLink) {
     let uri: LinkUri = format!("ild:{}", pair.slave_path().display())
         .parse()
         .unwrap();
-    let device = IldLink::open_pty(pair, Role::Device).unwrap();
+    let device = IldLink::open_pty(pair, 691_200, Role::Device).unwrap();
     let host = IldLink::open(&uri, Role::Host).unwrap();
     (host, device)
 }
@@ -30,7 +32,7 @@ fn host_and_raw_sensor() -> (IldLink, SerialLine) {
     let pair = PtyPair::open().unwrap();
     let path = pair.slave_path().to_owned();
     let raw = SerialLine::open(&path, 691_200, "raw").unwrap();
-    (IldLink::open_pty(pair, Role::Host).unwrap(), raw)
+    (IldLink::open_pty(pair, 691_200, Role::Host).unwrap(), raw)
 }
 
 #[tokio::test]
@@ -114,7 +116,7 @@ async fn answer_one(device: &mut IldLink, echo: bool) -> IldCommand {
             ..IldReply::default()
         },
         _ => IldReply {
-            echo: echo_line,
+            echo: echo_line.map(|line| line + ECHO_DONE_SUFFIX),
             ..IldReply::default()
         },
     };
@@ -139,19 +141,68 @@ async fn commands_and_replies_cross_the_link_with_and_without_echo() {
         answer_one(&mut device, false)
     );
     assert!(reply.unwrap().is_ok());
+    let rate = IldCommand::MeasRate(Some(MeasuringRate::Khz20));
     let (reply, command) = tokio::join!(
-        host.command(&IldCommand::MeasRate(Some(20.0)), REPLY_WAIT),
+        host.command(&rate, REPLY_WAIT),
         answer_one(&mut device, true)
     );
-    assert_eq!(command, IldCommand::MeasRate(Some(20.0)));
-    assert_eq!(reply.unwrap().echo.as_deref(), Some("MEASRATE 20"));
+    assert_eq!(command, rate);
+    let reply = reply.unwrap();
+    assert_eq!(reply.echo.as_deref(), Some("MEASRATE 20 ok"));
+    assert!(reply.lines.is_empty() && reply.is_ok(), "{reply:?}");
+}
+
+#[tokio::test]
+async fn the_host_ends_its_lines_in_cr_lf_and_an_lf_device_ignores_cr_alone() {
+    let (mut host, mut device) = host_and_device();
+    device.set_line_ending(LineEnding::Lf);
+    // CR LF is taken by either kind of device.
+    let (reply, command) = tokio::join!(
+        host.command(&IldCommand::GetInfo, REPLY_WAIT),
+        answer_one(&mut device, false)
+    );
+    assert!(reply.unwrap().is_ok());
+    assert_eq!(command, IldCommand::GetInfo);
+    // CR alone ends no line at an LF device: no reply.
+    let lone_cr = tokio::select! {
+        reply = host.command_ending_in(&IldCommand::GetInfo, "\r", Duration::from_millis(100)) => reply,
+        request = device.recv_command() => panic!("an LF device took a CR line: {request:?}"),
+    };
+    assert!(
+        matches!(lone_cr, Err(LinkError::NoReply { .. })),
+        "{lone_cr:?}"
+    );
+    // The CR was ignored but its line's text waits in the device: the next line ending in LF
+    // runs on from it, and is refused.
+    let stale = async {
+        let request = device.recv_command().await.unwrap();
+        let error = request.command.clone().unwrap_err();
+        device
+            .reply(&IldReply::refusal(None, &error))
+            .await
+            .unwrap();
+        request.line
+    };
+    let (reply, line) = tokio::join!(
+        host.command_ending_in(&IldCommand::Echo(Some(false)), "\n", REPLY_WAIT),
+        stale
+    );
+    assert_eq!(line, "GETINFOECHO OFF");
+    assert!(!reply.unwrap().is_ok());
+    // LF alone is a line end.
+    let (reply, command) = tokio::join!(
+        host.command_ending_in(&IldCommand::Echo(Some(false)), "\n", REPLY_WAIT),
+        answer_one(&mut device, false)
+    );
+    assert!(reply.unwrap().is_ok());
+    assert_eq!(command, IldCommand::Echo(Some(false)));
 }
 
 #[tokio::test]
 async fn the_device_refuses_unknown_and_malformed_commands() {
     let pair = PtyPair::open().unwrap();
     let path = pair.slave_path().to_owned();
-    let mut device = IldLink::open_pty(pair, Role::Device).unwrap();
+    let mut device = IldLink::open_pty(pair, 691_200, Role::Device).unwrap();
     let mut raw = SerialLine::open(&path, 691_200, "raw").unwrap();
     raw.write_all(b"FROB 1\r\nMEASRATE fast\r").await.unwrap();
     let unknown = device.recv_command().await.unwrap();
@@ -185,12 +236,12 @@ async fn a_reply_in_the_middle_of_the_stream_leaves_the_later_values_intact() {
     let (mut host, mut raw) = host_and_raw_sensor();
     let exchange = async {
         let mut got = Vec::new();
-        while !got.ends_with(b"\r") {
+        while !got.ends_with(b"\n") {
             let mut buf = [0; 64];
             let n = raw.read(&mut buf).await.unwrap();
             got.extend_from_slice(&buf[..n]);
         }
-        assert_eq!(got, b"OUTPUT NONE\r");
+        assert_eq!(got, b"OUTPUT NONE\r\n");
         let mut bytes = encode_cycle(&[1234]); // in flight before the sensor stopped
         bytes.extend_from_slice(b"\r\n->");
         bytes.extend_from_slice(&encode_cycle(&[4321]));
@@ -263,7 +314,7 @@ async fn the_raw_capture_holds_exactly_the_bytes_that_crossed() {
     let received = received.bytes();
     assert_eq!(&received[..expected.len()], &expected[..]);
     assert!(received.ends_with(b"->"));
-    assert_eq!(sent.bytes().as_slice(), b"GETINFO\r");
+    assert_eq!(sent.bytes().as_slice(), b"GETINFO\r\n");
 }
 
 /// The controller's default set-up: host on the master, the emulated sensor opens the slave
@@ -274,7 +325,7 @@ async fn controller_flow_host_on_the_master_sensor_on_the_slave_path() {
     let sensor_uri: LinkUri = format!("ild:{}@691200", pair.slave_path().display())
         .parse()
         .unwrap();
-    let mut host = IldLink::open_pty(pair, Role::Host).unwrap();
+    let mut host = IldLink::open_pty(pair, 691_200, Role::Host).unwrap();
     let sensor = tokio::spawn(async move {
         let mut sensor = IldLink::open(&sensor_uri, Role::Device).unwrap();
         assert_eq!(answer_one(&mut sensor, false).await, IldCommand::GetInfo);

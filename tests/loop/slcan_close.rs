@@ -19,6 +19,11 @@ fn closing_ends_the_run(timing: &str) {
         timing,
         "--duration-s",
         "600",
+        // The host sends five commands, then nothing until its `C`: in real time a loaded
+        // machine may take longer than the default 200 periods (10 ms) between the two, and
+        // the watchdog would end the run first.
+        "--watchdog-periods",
+        "1000000",
     ]);
     let mut host = SlcanHost::open(&emulator.path("fsm"));
     for k in 0..5u32 {

@@ -252,8 +252,9 @@ pub fn assert_gapless(seqs: &[u16], what: &str) {
 }
 
 /// Decodes a raw ILD capture with the protocol's stream decoder; every cycle must be a
-/// distance value and its counter, with no byte skipped. Returns (counter, value) per cycle.
-pub fn decode_ild(path: &Path) -> Vec<(u32, IldValue)> {
+/// distance value, alone or with its counter, with no byte skipped. Returns (counter, value)
+/// per cycle.
+pub fn decode_ild(path: &Path) -> Vec<(Option<u32>, IldValue)> {
     let bytes = std::fs::read(path).expect("the ILD capture exists");
     let mut decoder = IldDecoder::new();
     let mut cycles: Vec<Vec<u32>> = Vec::new();
@@ -274,14 +275,13 @@ pub fn decode_ild(path: &Path) -> Vec<(u32, IldValue)> {
     );
     cycles
         .into_iter()
-        .map(|cycle| {
-            assert_eq!(
-                cycle.len(),
-                2,
-                "{}: a cycle is value + counter",
+        .map(|cycle| match cycle[..] {
+            [value] => (None, IldValue::from_raw(value)),
+            [value, counter] => (Some(counter), IldValue::from_raw(value)),
+            _ => panic!(
+                "{}: a cycle is the distance, or the distance and its counter: {cycle:?}",
                 path.display()
-            );
-            (cycle[1], IldValue::from_raw(cycle[0]))
+            ),
         })
         .collect()
 }

@@ -67,6 +67,11 @@ pub async fn run(
             }
             HostAction::SendStop(frames) => {
                 let period = host.record().periods_done;
+                // The stop is one more exchange on the loop's axis: the sensor's last cycles,
+                // which arrive after the last period, come with the node's answer to it.
+                let now = tokio::time::Instant::now();
+                sensor.period_started(now);
+                host.inbox_mut().distances_mut().period_started(now);
                 if let Err(error) = mirror.send_stop(period, &frames).await {
                     host.on_error(error);
                 }

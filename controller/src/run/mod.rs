@@ -263,6 +263,9 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
     let period_s = controller.period_s();
     let sensor_rate_hz = rig.sensor.map(|sensor| sensor.measuring_rate_hz);
     bus_load::check(&scenario, sensor_rate_hz.unwrap_or(0.0), period_s)?;
+    if let Some(sensor) = &rig.sensor {
+        sensor_setup::check_line(sensor, &scenario.links.sensor, &rig.path)?;
+    }
     // Held to the end of the scan: a second scan into this folder is refused meanwhile.
     let _folder = out_folder::OutputFolder::claim(&options.out_dir)?;
 
@@ -295,13 +298,20 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         let progress = progress::Progress::new(periods, &scenario.name);
         let mut interrupt =
             interrupt::Interrupt::install().context("installing the signal handlers")?;
-        // The sensor's samples bound its clock as they arrive, on whichever link it is.
-        if let Some(rate_hz) = sensor_rate_hz {
+        // The sensor's samples bound its clock as they arrive, on whichever link it is; on the
+        // ILD line each cycle's last byte arrives at least its transmit time after it was
+        // measured.
+        if let Some(sensor) = rig.sensor {
+            let rate_hz = sensor.measuring_rate_hz;
             let bound = match scenario.timing.mode {
                 TimingMode::Lockstep => ArrivalBound::steps(period_s, rate_hz),
                 TimingMode::Realtime => ArrivalBound::wall_clock(rate_hz),
             };
-            links.sensor.bound_clock_by_arrivals(bound.clone());
+            let values = sensor.output().values.len() as u32;
+            let transmit_s = scanhil_protocol::ild::stream::cycle_transmit_s(values, sensor.baud);
+            links
+                .sensor
+                .bound_clock_by_arrivals(bound.clone().after_transmit(transmit_s));
             links.mirror.distances_mut().bound_clock_by_arrivals(bound);
         }
         // Angle history only where sensor samples are paired with it: a mirror-only run's
@@ -405,8 +415,16 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             failed_recordings,
         })
     })?;
-    let declared = sensor_rate_hz
-        .and_then(|rate| declared_sensor_clock(rate, outcome.emulator_summary.as_ref()));
+    // Distance frames on the mirror's link always carry the counter; the ILD line when the
+    // rig's sensor sends it.
+    let on_can = scenario.links.sensor == NodeLink::Uri("fsm".into());
+    let declared = rig.sensor.and_then(|sensor| {
+        declared_sensor_clock(
+            sensor.measuring_rate_hz,
+            sensor.sends_counter() || on_can,
+            outcome.emulator_summary.as_ref(),
+        )
+    });
     output::write(
         &scenario,
         &plan_summary,
@@ -444,6 +462,18 @@ pub struct LinkPlan {
     /// The rig's sensor: configured and read back before the run, and an emulator started here
     /// must serve it at its rate (`None`: left as it is, not checked).
     pub sensor_expectation: Option<crate::rig::RigSensor>,
+}
+
+impl LinkPlan {
+    /// The baud rate of an emulated sensor's line: the rig's, or the factory 691 200 when no
+    /// sensor is expected.
+    #[must_use]
+    pub fn sensor_baud(&self) -> u32 {
+        self.sensor_expectation
+            .map_or(scanhil_protocol::ild::stream::FACTORY_BAUD, |sensor| {
+                sensor.baud
+            })
+    }
 }
 
 /// The open links and the emulator process behind them.
@@ -523,7 +553,7 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
             let pair = PtyPair::open()?;
             emulator_args.extend([
                 "--sensor".into(),
-                format!("ild:{}", pair.slave_path().display()),
+                format!("ild:{}@{}", pair.slave_path().display(), plan.sensor_baud()),
             ]);
             sensor_pty = Some(pair);
         }
@@ -562,7 +592,7 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
     // The sensor is set up before the mirror's channel opens (which starts a real-time
     // emulator's clock), and before recording starts.
     let mut sensor = match (sensor_pty, &plan.sensor) {
-        (Some(pair), _) => SensorLink::on_pty(pair)?,
+        (Some(pair), _) => SensorLink::on_pty(pair, plan.sensor_baud())?,
         (None, Some(NodeLink::Uri(uri))) if uri != "fsm" => SensorLink::open(&uri.parse()?)?,
         _ => SensorLink::Elsewhere,
     };
@@ -723,16 +753,25 @@ impl EmulatedDevices {
     }
 }
 
-/// The sensor's clock as the emulator declared it in its summary, when it served the sensor.
-/// (A real sensor declares nothing: its clock is then estimated from arrival times.)
+/// The sensor's clock as the emulator declared it in its summary, when it served the sensor:
+/// the loop time of its counter 0, and, when the cycles carry no counter, the counter of the
+/// first cycle it sent (the host counts its cycles from 0 there, so each is placed as its own
+/// counter would place it). A real sensor declares nothing: its clock is then estimated from
+/// arrival times.
 fn declared_sensor_clock(
     measuring_rate_hz: f64,
+    sends_counter: bool,
     emulator: Option<&serde_json::Value>,
 ) -> Option<SensorClock> {
-    let declared = emulator.and_then(|e| e["summary"]["sensor"]["counter_zero_s"].as_f64())?;
+    let sensor = &emulator?["summary"]["sensor"];
+    let counter_offset = if sends_counter {
+        0
+    } else {
+        sensor["first_sent_counter"].as_u64()?
+    };
     Some(SensorClock {
-        measuring_rate_hz,
-        counter_zero_s: declared,
+        counter_offset,
+        ..SensorClock::new(measuring_rate_hz, sensor["counter_zero_s"].as_f64()?)
     })
 }
 

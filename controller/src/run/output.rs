@@ -364,14 +364,14 @@ fn estimate_sensor_clock<'a>(
         .flatten()
         .filter_map(|bound| bound.counter_zero_s(epoch))
         .fold(f64::INFINITY, f64::min);
-    SensorClock {
+    SensorClock::new(
         measuring_rate_hz,
-        counter_zero_s: if counter_zero_s.is_finite() {
+        if counter_zero_s.is_finite() {
             counter_zero_s
         } else {
             0.0
         },
-    }
+    )
 }
 
 /// `tracking.svg`: the measured angles, the tracking error, and the relative error per window

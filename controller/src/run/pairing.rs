@@ -19,13 +19,32 @@ pub struct SensorClock {
     pub measuring_rate_hz: f64,
     /// Loop time of the sample with (unwrapped) counter 0, in seconds.
     pub counter_zero_s: f64,
+    /// Added to a sample's counter before it is placed: the sensor's counter at the first
+    /// sample a host counted when the cycles carry no counter (the host counts them from 0;
+    /// an emulated sensor declares where its own counter stood), else 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub counter_offset: u64,
+}
+
+fn is_zero(value: &u64) -> bool {
+    *value == 0
 }
 
 impl SensorClock {
+    /// A clock with counter 0 at `counter_zero_s` and no offset.
+    #[must_use]
+    pub fn new(measuring_rate_hz: f64, counter_zero_s: f64) -> SensorClock {
+        SensorClock {
+            measuring_rate_hz,
+            counter_zero_s,
+            counter_offset: 0,
+        }
+    }
+
     /// The loop time a sample with the unwrapped counter `counter` was measured at.
     #[must_use]
     pub fn instant_s(&self, counter: u64) -> f64 {
-        self.counter_zero_s + counter as f64 / self.measuring_rate_hz
+        self.counter_zero_s + (counter + self.counter_offset) as f64 / self.measuring_rate_hz
     }
 }
 
@@ -129,6 +148,9 @@ impl FramePairing {
 #[derive(Debug, Clone)]
 pub struct ArrivalBound {
     measuring_rate_hz: f64,
+    /// The least time from a sample's measurement to its arrival: the line's transmit time of
+    /// a cycle (0 on CAN), s.
+    transmit_s: f64,
     axis: ArrivalAxis,
 }
 
@@ -160,6 +182,7 @@ impl ArrivalBound {
     pub fn wall_clock(measuring_rate_hz: f64) -> ArrivalBound {
         ArrivalBound {
             measuring_rate_hz,
+            transmit_s: 0.0,
             axis: ArrivalAxis::WallClock {
                 origin: None,
                 earliest_s: f64::INFINITY,
@@ -172,6 +195,7 @@ impl ArrivalBound {
     pub fn steps(period_s: f64, measuring_rate_hz: f64) -> ArrivalBound {
         ArrivalBound {
             measuring_rate_hz,
+            transmit_s: 0.0,
             axis: ArrivalAxis::Steps {
                 period_s,
                 recent_starts: std::collections::VecDeque::with_capacity(RECENT_PERIOD_STARTS),
@@ -179,6 +203,15 @@ impl ArrivalBound {
                 bound_s: f64::INFINITY,
             },
         }
+    }
+
+    /// The same bound for samples that take at least `transmit_s` from their measurement to
+    /// their arrival (an ILD line's transmit time of one cycle: its last byte arrives that
+    /// long after the cycle went out), so the bound is that much tighter.
+    #[must_use]
+    pub fn after_transmit(mut self, transmit_s: f64) -> ArrivalBound {
+        self.transmit_s = transmit_s;
+        self
     }
 
     /// Lockstep: the next period's frames started going out at `at` (nothing on the wall
@@ -200,7 +233,7 @@ impl ArrivalBound {
 
     /// A sample with the unwrapped counter `counter` arrived at `arrived`.
     pub fn note(&mut self, arrived: tokio::time::Instant, counter: u64) {
-        let counter_s = counter as f64 / self.measuring_rate_hz;
+        let counter_s = counter as f64 / self.measuring_rate_hz + self.transmit_s;
         match &mut self.axis {
             ArrivalAxis::WallClock { origin, earliest_s } => {
                 let origin = *origin.get_or_insert(arrived);
@@ -429,10 +462,7 @@ mod tests {
             alpha: (k * 1e-3).sin(),
             beta: k,
         });
-        let clock = SensorClock {
-            measuring_rate_hz: 1.0 / (0.7 * period_s),
-            counter_zero_s: -0.1,
-        };
+        let clock = SensorClock::new(1.0 / (0.7 * period_s), -0.1);
         let range = MeasuringRange {
             start_mm: 100.0,
             span_mm: 50.0,
@@ -512,6 +542,18 @@ mod tests {
     }
 
     #[test]
+    fn a_lines_transmit_time_tightens_the_bound_on_either_axis() {
+        let start = tokio::time::Instant::now();
+        let mut steps = ArrivalBound::steps(0.5, 1.0).after_transmit(0.125);
+        steps.period_started(start);
+        steps.note(start + std::time::Duration::from_micros(1), 0);
+        assert_eq!(steps.counter_zero_s(None), Some(0.375));
+        let mut wall = ArrivalBound::wall_clock(2.0).after_transmit(0.25);
+        wall.note(start + std::time::Duration::from_secs(1), 1);
+        assert_eq!(wall.counter_zero_s(Some(start)), Some(0.25));
+    }
+
+    #[test]
     fn lockstep_bound_kept_as_samples_arrive_is_the_bound_over_all_period_starts() {
         // 5000 periods 10 us apart; the sensor's samples (two a period, counter zero at
         // -3 us) arrive 1 to 9 us into the period after the one they were measured in. Kept
@@ -554,10 +596,7 @@ mod tests {
 
     #[test]
     fn sensor_clock_places_counters_on_the_loop_time_axis() {
-        let clock = SensorClock {
-            measuring_rate_hz: 20_000.0,
-            counter_zero_s: 1e-5,
-        };
+        let clock = SensorClock::new(20_000.0, 1e-5);
         assert!((clock.instant_s(20_000) - 1.00001).abs() < 1e-12);
     }
 }

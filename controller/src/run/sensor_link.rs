@@ -1,14 +1,17 @@
 //! The controller's end of the sensor: the ILD 2300's RS422 stream (the protocol's
 //! [`IldLink`], host end), recorded raw byte for byte, decoded into (counter, value) samples.
-//! Each output cycle is a distance value, then (when the sensor sends it,
-//! `OUTADD_RS422 COUNTER`) its 18-bit measured-value counter; a sensor without the counter
-//! gets the running count of cycles. A sensor on the mirror's CAN link sends Distance frames
-//! instead; [`super::mirror_link`] collects those. [`IldSampleDecoder`] is the same decoding
-//! fed with bytes directly, for a loop run in one process.
+//! Each output cycle holds the values `GETOUTINFO_RS422` lists, in that order
+//! ([`SampleLayout`]): the distance, and the 18-bit measured-value counter when the sensor sends
+//! it (`OUTADD_RS422 COUNTER`); a sensor without the counter gets the running count of cycles,
+//! so its samples are placed by their arrival alone. A sensor on the mirror's CAN link sends
+//! Distance frames instead; [`super::mirror_link`] collects those. [`IldSampleDecoder`] is the
+//! same decoding fed with bytes directly, for a loop run in one process.
 
 use std::collections::VecDeque;
 use std::time::Duration;
 
+use scanhil_protocol::ild::IldValue;
+use scanhil_protocol::ild::command::{AddValue, IldOutputInfo, OutputValue};
 use scanhil_protocol::link::ild::{IldCounters, IldCycle, IldCycleAssembler, IldLink};
 use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{ByteCapture, LinkError, LinkUri, PtyPair};
@@ -18,8 +21,51 @@ use super::loop_error::LoopError;
 use super::pairing::ArrivalBound;
 use super::sample_log::{CountedSample, SampleLog};
 
-/// Values per output cycle: the distance and the counter.
-const VALUES_PER_CYCLE: usize = 2;
+/// Where a cycle's values are: how many, the distance's place and the counter's (when the
+/// sensor sends one), as `GETOUTINFO_RS422` lists them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SampleLayout {
+    /// Values per cycle.
+    pub values: usize,
+    /// The distance's place (0: the cycle's first value).
+    pub distance: usize,
+    /// The counter's place, if the cycle has one.
+    pub counter: Option<usize>,
+}
+
+impl SampleLayout {
+    /// A cycle of the distance alone (a sensor taken as it is, before its output is known).
+    pub const DISTANCE_ONLY: SampleLayout = SampleLayout {
+        values: 1,
+        distance: 0,
+        counter: None,
+    };
+
+    /// The layout of cycles holding `info`'s values; `None` without a distance (`DIST1`).
+    #[must_use]
+    pub fn of(info: &IldOutputInfo) -> Option<SampleLayout> {
+        Some(SampleLayout {
+            values: info.values.len(),
+            distance: info.position(OutputValue::Dist1)?,
+            counter: info.position(OutputValue::Add(AddValue::Counter)),
+        })
+    }
+
+    /// The sample a cycle carries: its counter (`None` when the layout has none) and its
+    /// distance; `None` when the cycle lost one of them (counted as incomplete by the link).
+    #[must_use]
+    pub fn sample(&self, cycle: &IldCycle) -> Option<(Option<u32>, IldValue)> {
+        let raw = |index: usize| match index {
+            0 => Some(cycle.distance.raw()),
+            i => cycle.extras.get(i - 1).copied(),
+        };
+        let distance = IldValue::from_raw(raw(self.distance)?);
+        match self.counter {
+            None => Some((None, distance)),
+            Some(index) => Some((Some(raw(index)?), distance)),
+        }
+    }
+}
 
 /// What the sensor link saw.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
@@ -47,6 +93,7 @@ pub enum SensorLink {
 #[derive(Debug)]
 pub struct IldStream {
     link: IldLink,
+    layout: SampleLayout,
     log: SampleLog,
 }
 
@@ -55,6 +102,7 @@ pub struct IldStream {
 #[derive(Debug)]
 pub struct IldSampleDecoder {
     assembler: IldCycleAssembler,
+    layout: SampleLayout,
     cycles: VecDeque<IldCycle>,
     log: SampleLog,
 }
@@ -68,20 +116,31 @@ impl SensorLink {
         Ok(Self::on(IldLink::open(uri, Role::Host)?))
     }
 
-    /// The ILD stream on the master end of a pty pair whose slave the emulator opens.
+    /// The ILD stream on the master end of a pty pair whose slave the emulator opens, standing
+    /// for a line at `baud`.
     ///
     /// # Errors
     /// [`LinkError`] if the line cannot be set up.
-    pub fn on_pty(pair: PtyPair) -> Result<SensorLink, LinkError> {
-        Ok(Self::on(IldLink::open_pty(pair, Role::Host)?))
+    pub fn on_pty(pair: PtyPair, baud: u32) -> Result<SensorLink, LinkError> {
+        Ok(Self::on(IldLink::open_pty(pair, baud, Role::Host)?))
     }
 
-    fn on(mut link: IldLink) -> SensorLink {
-        link.set_values_per_cycle(VALUES_PER_CYCLE);
-        SensorLink::Ild(Box::new(IldStream {
+    fn on(link: IldLink) -> SensorLink {
+        let mut stream = IldStream {
             link,
+            layout: SampleLayout::DISTANCE_ONLY,
             log: SampleLog::new(),
-        }))
+        };
+        stream.set_layout(SampleLayout::DISTANCE_ONLY);
+        SensorLink::Ild(Box::new(stream))
+    }
+
+    /// Decodes the cycles by `layout` from now on (the sensor's `GETOUTINFO_RS422`; the
+    /// distance alone until told). Nothing when the sensor is elsewhere.
+    pub fn set_layout(&mut self, layout: SampleLayout) {
+        if let SensorLink::Ild(stream) = self {
+            stream.set_layout(layout);
+        }
     }
 
     /// The host end of the ILD line, for commands (`None`: the sensor is elsewhere).
@@ -130,7 +189,7 @@ impl SensorLink {
             SensorLink::Elsewhere => std::future::pending().await,
             SensorLink::Ild(stream) => loop {
                 match stream.link.recv_cycle().await {
-                    Ok(cycle) => add_cycle(&mut stream.log, &cycle),
+                    Ok(cycle) => add_cycle(&mut stream.log, stream.layout, &cycle),
                     Err(error) => return error.into(),
                 }
             },
@@ -144,7 +203,7 @@ impl SensorLink {
     pub fn try_pump(&mut self) -> Result<(), LoopError> {
         if let SensorLink::Ild(stream) = self {
             while let Some(cycle) = stream.link.try_recv_cycle()? {
-                add_cycle(&mut stream.log, &cycle);
+                add_cycle(&mut stream.log, stream.layout, &cycle);
             }
         }
         Ok(())
@@ -163,7 +222,7 @@ impl SensorLink {
             match stream.link.recv_cycle_timeout(quiet).await {
                 Ok(None) | Err(LinkError::HangUp { .. }) => return stream.link.flush_capture(),
                 Err(error) => return Err(error),
-                Ok(Some(cycle)) => add_cycle(&mut stream.log, &cycle),
+                Ok(Some(cycle)) => add_cycle(&mut stream.log, stream.layout, &cycle),
             }
         }
     }
@@ -193,13 +252,20 @@ impl SensorLink {
     }
 }
 
+impl IldStream {
+    fn set_layout(&mut self, layout: SampleLayout) {
+        self.layout = layout;
+        self.link.set_values_per_cycle(layout.values);
+    }
+}
+
 impl IldSampleDecoder {
-    /// A decoder of cycles of a distance and its counter, as [`SensorLink`] configures its
-    /// link.
+    /// A decoder of cycles laid out as `layout`.
     #[must_use]
-    pub fn new() -> IldSampleDecoder {
+    pub fn new(layout: SampleLayout) -> IldSampleDecoder {
         IldSampleDecoder {
-            assembler: IldCycleAssembler::new(VALUES_PER_CYCLE),
+            assembler: IldCycleAssembler::new(layout.values),
+            layout,
             cycles: VecDeque::new(),
             log: SampleLog::new(),
         }
@@ -209,7 +275,7 @@ impl IldSampleDecoder {
     pub fn push(&mut self, bytes: &[u8], arrived: tokio::time::Instant) {
         self.assembler.push(bytes, arrived, &mut self.cycles);
         for cycle in self.cycles.drain(..) {
-            add_cycle(&mut self.log, &cycle);
+            add_cycle(&mut self.log, self.layout, &cycle);
         }
     }
 
@@ -221,15 +287,12 @@ impl IldSampleDecoder {
     }
 }
 
-impl Default for IldSampleDecoder {
-    fn default() -> Self {
-        Self::new()
+/// Adds a decoded cycle: its distance, with its counter when the sensor sends one (a cycle
+/// that lost either is left out: it cannot be placed).
+fn add_cycle(log: &mut SampleLog, layout: SampleLayout, cycle: &IldCycle) {
+    if let Some((counter, distance)) = layout.sample(cycle) {
+        log.add(counter, distance, cycle.arrived);
     }
-}
-
-/// Adds a decoded cycle: its distance, with its counter when the sensor sends one.
-fn add_cycle(log: &mut SampleLog, cycle: &IldCycle) {
-    log.add(cycle.extras.first().copied(), cycle.distance, cycle.arrived);
 }
 
 /// The log's counters, with the line's.

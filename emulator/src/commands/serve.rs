@@ -5,6 +5,7 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use scanhil_protocol::fault_injection::SensorFaults;
+use scanhil_protocol::ild::command::LineEnding;
 
 use scanhil_emulator::serve::misbehaviour::Misbehaviour;
 use scanhil_emulator::serve::{DEFAULT_HEARTBEAT_HZ, DEFAULT_PROBE_S, ServeConfig, TimingMode};
@@ -20,10 +21,15 @@ pub struct Args {
     /// pair and print its path for an outside client).
     #[arg(long)]
     fsm: Option<String>,
-    /// The sensor node's link: `ild:PATH` (the ILD 2300 stream), `ild:pty`, or `fsm` (Distance
-    /// frames on the mirror's CAN link).
+    /// The sensor node's link: `ild:PATH[@BAUD]` (the ILD 2300 stream), `ild:pty[@BAUD]` (a pty
+    /// pair standing for a line at that baud, 691200 by default), or `fsm` (Distance frames on
+    /// the mirror's CAN link).
     #[arg(long)]
     sensor: Option<String>,
+    /// How the emulated ILD takes command lines: `any` (CR, LF or CR LF ends a line) or `lf`
+    /// (only LF does, CR is ignored, as the ILD 1220/1420 firmwares require).
+    #[arg(long, value_enum, default_value_t = IldLineEnd::Any)]
+    ild_line_end: IldLineEnd,
     /// Lockstep (the controller's Step frames advance time) or realtime (this emulator is the
     /// clock master).
     #[arg(long, value_enum, default_value_t = TimingMode::Lockstep)]
@@ -65,6 +71,15 @@ pub struct Args {
     probe_s: f64,
 }
 
+/// `--ild-line-end`: what ends a command line at the emulated ILD.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum IldLineEnd {
+    /// CR, LF or CR LF.
+    Any,
+    /// LF only (CR ignored).
+    Lf,
+}
+
 /// Parses and checks `--sensor-faults` (the field named in the error).
 fn parse_sensor_faults(text: &str) -> Result<SensorFaults, String> {
     let faults: SensorFaults = serde_json::from_str(text).map_err(|error| error.to_string())?;
@@ -91,6 +106,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         scene: args.scene,
         fsm: args.fsm,
         sensor: args.sensor,
+        ild_line_ending: match args.ild_line_end {
+            IldLineEnd::Any => LineEnding::CrOrLf,
+            IldLineEnd::Lf => LineEnding::Lf,
+        },
         timing: args.timing,
         seed: args.seed,
         watchdog_periods: args.watchdog_periods,

@@ -122,13 +122,17 @@ pub async fn run(
                 // they woke it once more a period).
                 // The sensor's line is written whole (lossless), so it is bounded here too;
                 // `sensor_turn` says which line a timeout found unread.
+                // The sensor's cycles go with the answer of the period their last byte arrives
+                // in: by the end of the period just stepped.
+                let until_s = node.node().next_period() as f64 * node.node().plant().period_s();
                 let sensor_turn = std::cell::Cell::new(false);
                 let send = async {
                     for send in answer.sends {
                         match send {
                             NodeSend::Frame(frame) => links.fsm.queue(&frame).await?,
                             NodeSend::Samples(samples) => {
-                                links.sensor.queue(&samples, &mut links.fsm).await?;
+                                links.sensor.offer(&samples);
+                                links.sensor.release(until_s, &mut links.fsm).await?;
                             }
                         }
                     }
@@ -156,7 +160,17 @@ pub async fn run(
                     });
                 }
             }
-            NodeReply::EndOfRun(ready) => return end_of_run(&ready, links).await,
+            NodeReply::EndOfRun(ready) => {
+                // What the sensor's line still carries arrives after the last period: it goes
+                // out before the end.
+                links.sensor.release_all(&mut links.fsm).await?;
+                if let Ok(flushed) =
+                    tokio::time::timeout(write_allowance, links.sensor.flush(&mut links.fsm)).await
+                {
+                    flushed?;
+                }
+                return end_of_run(&ready, links).await;
+            }
         }
     }
 }

@@ -4,6 +4,9 @@
 //! # Layout
 //! - [`mirror_node`]: the mirror node as a protocol state machine around the plant (no I/O).
 //! - [`sensor_port`]: where the sensor's samples go (the ILD stream, or CAN Distance frames).
+//! - [`sensor_commands`]: the emulated ILD 2300's settings and its answers to the host's ASCII
+//!   commands (no I/O).
+//! - [`ild_line`]: the ILD's RS422 line pacing the output cycles at its baud (no I/O).
 //! - [`lockstep_node`]: the node's answers to the controller's frames in lockstep (no I/O).
 //! - [`lockstep`]: the controller's Step frame advances the plant one period.
 //! - [`realtime`]: this emulator is the clock master on the wall clock.
@@ -14,6 +17,7 @@
 //! The process speaks on stdout in JSON lines: `{"event":"ready",...}` once the links are
 //! open (with the paths of any pty it created), and `{"event":"summary",...}` at the end.
 
+pub mod ild_line;
 pub mod lockstep;
 pub mod lockstep_node;
 pub mod mirror_node;
@@ -39,6 +43,7 @@ use crate::scene::Scene;
 use crate::sensor_faults::SensorFaultModel;
 use mirror_node::MirrorNode;
 use scanhil_protocol::fault_injection::SensorFaults;
+use scanhil_protocol::ild::command::LineEnding;
 use sensor_port::SensorPort;
 
 /// Status frames per second of loop time unless `serve` is told otherwise.
@@ -64,8 +69,11 @@ pub struct ServeConfig {
     pub scene: PathBuf,
     /// The mirror node's link URI (`slcan:pty` creates a pty pair).
     pub fsm: Option<String>,
-    /// The sensor node's link URI (`ild:pty` creates a pty pair; `fsm` = the mirror's link).
+    /// The sensor node's link URI (`ild:pty[@BAUD]` creates a pty pair; `fsm` = the mirror's
+    /// link).
     pub sensor: Option<String>,
+    /// What ends a command line at the emulated ILD.
+    pub ild_line_ending: LineEnding,
     /// Lockstep or real time.
     pub timing: TimingMode,
     /// Overrides the scene's seed.
@@ -278,7 +286,8 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
         };
         let fsm = open_fsm(fsm_uri).await?;
         ready["fsm"] = fsm.name().into();
-        let (sensor, sensor_name) = SensorPort::open(config.sensor.as_deref(), &scene)?;
+        let (sensor, sensor_name) =
+            SensorPort::open(config.sensor.as_deref(), &scene, config.ild_line_ending)?;
         // Lockstep loses no sensor cycle (the host gives time); real time streams as a real
         // sensor does, dropping what the line cannot take.
         let sensor = match config.timing {

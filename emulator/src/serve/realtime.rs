@@ -112,10 +112,15 @@ pub async fn run(
         }
         if host.ended {
             // The controller ended the run (after its zero command, which the node took
-            // first): the node answers Status(ready) as its last frame.
+            // first): the node answers Status(ready) as its last frame, after what the
+            // sensor's line still carries.
             node.on_end_of_run();
             let ready = status_frame(node.state(), k, node.plant().period_s())?;
-            match end_of_run(&ready, links).await {
+            let ended = async {
+                release_the_rest(links).await?;
+                end_of_run(&ready, links).await
+            };
+            match ended.await {
                 Ok(report) => (outcome, ended_by) = (report.outcome, report.ended_by),
                 Err(err) => link_error = Some(err),
             }
@@ -212,17 +217,19 @@ pub async fn run(
         // allowance is dropped (and counted), as frames on a bus nobody reads are lost; an
         // earlier period's bytes go first, and while they wait this period's are not queued.
         let written_before = links.fsm.bytes_written();
-        // Whether the sensor's turn came before the allowance ran out: if not, its samples
-        // were never counted, and are counted as dropped below.
-        let sensor_reached = std::cell::Cell::new(false);
+        // The period's samples go onto the sensor's line now (outside the send allowance, so
+        // each is counted once, sent or dropped, even when the allowance runs out before the
+        // sensor's turn: they wait for the next tick); what has arrived by this tick goes out
+        // with its frames.
+        links.sensor.offer(&samples);
+        let now_s = k as f64 * node.plant().period_s();
         let send = async {
             links.fsm.flush().await?;
             // The period's frames go out together: one write per link.
             for frame in &frames {
                 links.fsm.queue(frame).await?;
             }
-            sensor_reached.set(true);
-            links.sensor.emit(&samples, &mut links.fsm).await?;
+            links.sensor.emit(now_s, &mut links.fsm).await?;
             links.fsm.flush().await?;
             anyhow::Ok(())
         };
@@ -239,9 +246,6 @@ pub async fn run(
         } else {
             dropped_periods += 1;
             previous_reading_late_s = None;
-            if !sensor_reached.get() {
-                links.sensor.count_unsent(&samples);
-            }
         }
         // A slow host still takes bytes; one that stopped reading takes none.
         if sent || links.fsm.bytes_written() != written_before {
@@ -249,6 +253,12 @@ pub async fn run(
         } else {
             unsent_since.get_or_insert(now);
         }
+    }
+    if link_error.is_none()
+        && ended_by == RunEnd::Duration
+        && let Err(err) = release_the_rest(links).await
+    {
+        link_error = Some(err);
     }
     if let Some(link_error) = link_error {
         let report = end_on_link_error(node, links, link_error).await?;
@@ -272,6 +282,20 @@ pub async fn run(
         }),
         error,
     })
+}
+
+/// The end of the run: what the sensor's line still carries goes out as far as the line
+/// takes it within the send allowance (the rest is counted dropped, as any cycle the line
+/// cannot take).
+async fn release_the_rest(links: &mut ServeLinks) -> anyhow::Result<()> {
+    let sent = async {
+        links.sensor.release_all(&mut links.fsm).await?;
+        links.sensor.flush(&mut links.fsm).await
+    };
+    match tokio::time::timeout(SEND_ALLOWANCE, sent).await {
+        Ok(sent) => sent,
+        Err(_elapsed) => Ok(()),
+    }
 }
 
 /// Handles the host's frames until `deadline` (busy-polling: spinning on non-blocking reads;

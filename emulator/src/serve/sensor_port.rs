@@ -1,25 +1,29 @@
 //! Where the emulated sensor's samples go: the ILD 2300's own RS422 byte stream on a serial
-//! line or pty (one output cycle per sample: the distance value, then the 18-bit measured-value
-//! counter, as a sensor configured with `OUTADD_RS422 COUNTER` sends them), or Distance frames
-//! on the mirror's CAN link.
+//! line or pty (one output cycle per sample, the values its settings select, paced at the
+//! line's baud by [`super::ild_line`]), or Distance frames on the mirror's CAN link.
 //!
-//! The summary line declares the sensor's clock (measuring rate, and the loop time its counter
-//! 0 stands for) so the host can place each distance in time; for a real sensor the host
-//! estimates it instead.
+//! The summary line declares the sensor's clock (measuring rate, the loop time its counter 0
+//! stands for, and the measuring time of the first cycle it sent) so the host can place each
+//! distance in time; for a real sensor the host estimates it instead.
 //!
 //! On the ILD line the port also answers the host's ASCII commands
 //! ([`super::sensor_commands`]): before the run and between periods (the timing loops wait on
 //! [`SensorPort::answer_commands`] beside the mirror's link) and, in real time, between
 //! streamed cycles ([`SensorPort::emit`] first answers what has arrived). Answering never
 //! blocks the mirror loop: replies are written as far as the line takes them now, the rest
-//! goes out with the next cycle. What the commands set (output on/off, the counter, the laser) shapes the cycles
-//! sent. Distance frames on CAN have no command line.
+//! goes out with the next cycle. What the commands set (output on/off, the extra values, the
+//! laser) shapes the cycles sent. Distance frames on CAN have no command line.
+//!
+//! The line paces the cycles: each arrives its transmit time after it was measured, and one
+//! the baud rate cannot carry is lost as the real sensor loses it (`lost_to_baud` in the
+//! summary). Lockstep writes each cycle with the answer of the period in which its last byte
+//! arrives; real time writes it at the first tick after that.
 //!
 //! In real time the ILD stream never waits for its reader, as a real RS422 sensor streams
 //! whether anyone listens: a cycle the line cannot take now (the host is not reading, or not
-//! keeping up) is dropped whole and counted (`dropped_cycles` in the summary; the
-//! measured-value counter still advances, so the host sees the gap). So a sensor line nobody
-//! reads never stalls the mirror, and at most one cycle and
+//! keeping up) is dropped and counted (`dropped_cycles` in the summary; the measured-value
+//! counter still advances, so the host sees the gap). So a sensor line nobody reads never
+//! stalls the mirror, and at most one tick's cycles and
 //! [`MAX_QUEUED_REPLY_BYTES`](scanhil_protocol::link::ild::MAX_QUEUED_REPLY_BYTES) of replies
 //! wait in memory.
 //!
@@ -29,10 +33,13 @@
 //! watchdog's allowance: a host that stops reading the sensor's line then ends the run as one
 //! that stops reading the mirror's does (coils zeroed, `ended_by: host_stopped_reading`).
 
+use scanhil_protocol::ild::command::{BAUD_RATES_UNCHECKED, LineEnding, MeasuringRate};
+use scanhil_protocol::ild::stream::FACTORY_BAUD;
 use scanhil_protocol::link::ild::{IldLink, IldRequest};
 use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{CanLink, LinkError, LinkUri, PtyPair};
 
+use super::ild_line::{IldLine, PacedCycle};
 use super::sensor_commands::IldSettings;
 use crate::scene::Scene;
 use crate::sensor::IldSample;
@@ -45,14 +52,15 @@ pub enum SensorPort {
     Off,
     /// The ILD RS422 stream and command line (device end).
     Ild(Box<IldPort>),
-    /// Distance frames on the mirror's CAN link.
-    Can(SensorClockTrack),
+    /// Distance frames on the mirror's CAN link: the samples offered, not yet queued.
+    Can(SensorClockTrack, Vec<IldSample>),
 }
 
 /// The ILD line's device end with the emulated sensor's settings.
 #[derive(Debug)]
 pub struct IldPort {
     link: IldLink,
+    line: IldLine,
     clock: SensorClockTrack,
     settings: IldSettings,
     commands: CommandCounts,
@@ -82,6 +90,8 @@ pub struct SensorSummary {
     /// Commands answered (ILD line only).
     #[serde(flatten)]
     pub commands: CommandCounts,
+    /// ILD line: its baud rate (`None` on CAN).
+    pub baud: Option<u32>,
 }
 
 /// What the sensor has sent and when its counter started.
@@ -89,23 +99,35 @@ pub struct SensorSummary {
 pub struct SensorClockTrack {
     /// Samples sent.
     pub samples: u64,
-    /// ILD line: samples whose output cycle the line could not take (dropped, not sent).
+    /// ILD line, real time: cycles the line could not take when they were due (the host not
+    /// reading): dropped, not sent.
     pub dropped_cycles: u64,
+    /// ILD line: cycles lost because the line's baud rate could not carry them (a newer cycle
+    /// replaced them while they waited for the line).
+    pub lost_to_baud: u64,
     /// The loop time counter value 0 stands for, s (`None` before the first sample).
     pub counter_zero_s: Option<f64>,
+    /// The measured-value counter of the first cycle sent (`None` before one was sent): where
+    /// a host that counts cycles without the counter starts.
+    pub first_sent_counter: Option<u32>,
     /// The sensor's measuring rate, Hz.
     pub measuring_rate_hz: f64,
 }
 
 impl SensorPort {
-    /// Opens the sensor's link: `None` (no sensor served), `ild:pty` (a new pty pair),
-    /// `ild:PATH[@BAUD]`, or `fsm` (Distance frames on the mirror's link). Returns the port
-    /// and the link's name for the ready line.
+    /// Opens the sensor's link: `None` (no sensor served), `ild:pty[@BAUD]` (a new pty pair
+    /// standing for a line at that baud, the factory 691 200 by default), `ild:PATH[@BAUD]`,
+    /// or `fsm` (Distance frames on the mirror's link); command lines end as `line_ending`
+    /// says. Returns the port and the link's name for the ready line.
     ///
     /// # Errors
-    /// A link that does not open, a CAN URI given for the sensor, or a sensor link for a
-    /// scene without a sensor.
-    pub fn open(uri: Option<&str>, scene: &Scene) -> anyhow::Result<(SensorPort, String)> {
+    /// A link that does not open, a CAN URI given for the sensor, a sensor link for a scene
+    /// without a sensor, a baud rate the sensor does not have.
+    pub fn open(
+        uri: Option<&str>,
+        scene: &Scene,
+        line_ending: LineEnding,
+    ) -> anyhow::Result<(SensorPort, String)> {
         let Some(uri) = uri else {
             return Ok((SensorPort::Off, String::new()));
         };
@@ -118,22 +140,48 @@ impl SensorPort {
         let config = scene.sensor.unwrap_or_default();
         let clock = SensorClockTrack::new(config.measuring_rate_hz);
         if uri == "fsm" {
-            return Ok((SensorPort::Can(clock), "fsm".into()));
+            return Ok((SensorPort::Can(clock, Vec::new()), "fsm".into()));
         }
-        let settings = IldSettings::new(config.measuring_rate_hz, config.range.span_mm);
-        let link = if uri == "ild:pty" {
-            IldLink::open_pty(PtyPair::open()?, Role::Device)?
-        } else {
-            match uri.parse::<LinkUri>()? {
+        let mut link = match uri.strip_prefix("ild:pty") {
+            Some(rest) => {
+                let baud = match rest.strip_prefix('@') {
+                    Some(_) => match format!("ild:x{rest}").parse::<LinkUri>()? {
+                        LinkUri::Ild { baud, .. } => baud,
+                        _ => unreachable!("an ild: URI parses as one"),
+                    },
+                    None if rest.is_empty() => FACTORY_BAUD,
+                    None => anyhow::bail!("--sensor {uri}: expected `ild:pty` or `ild:pty@BAUD`"),
+                };
+                IldLink::open_pty(PtyPair::open()?, baud, Role::Device)?
+            }
+            None => match uri.parse::<LinkUri>()? {
                 parsed @ LinkUri::Ild { .. } => IldLink::open(&parsed, Role::Device)?,
                 other => anyhow::bail!(
                     "--sensor {other}: the sensor speaks the ILD stream (`ild:PATH`) or Distance \
                      frames on the mirror's link (`fsm`)"
                 ),
-            }
+            },
         };
+        if !BAUD_RATES_UNCHECKED.contains(&link.baud()) {
+            anyhow::bail!(
+                "--sensor {uri}: the ILD 2300 has no baud rate {} (BAUDRATE takes {:?}; the \
+                 list is the family's usual one, not confirmed for the 2300)",
+                link.baud(),
+                BAUD_RATES_UNCHECKED
+            );
+        }
+        link.set_line_ending(line_ending);
+        let rate = MeasuringRate::from_hz(config.measuring_rate_hz).ok_or_else(|| {
+            anyhow::anyhow!(
+                "scene `{}`: {} Hz is not an ILD 2300 measuring rate",
+                scene.name,
+                config.measuring_rate_hz
+            )
+        })?;
+        let settings = IldSettings::new(rate, config.range.span_mm, link.baud());
         let name = link.name().to_owned();
         let port = IldPort {
+            line: IldLine::new(link.baud()),
             link,
             clock,
             settings,
@@ -159,7 +207,7 @@ impl SensorPort {
     pub fn name(&self) -> &str {
         match self {
             SensorPort::Ild(port) => port.link.name(),
-            SensorPort::Off | SensorPort::Can(_) => "",
+            SensorPort::Off | SensorPort::Can(..) => "",
         }
     }
 
@@ -221,86 +269,109 @@ impl IldPort {
         }
         Ok(())
     }
+
+    /// Queues `cycles` on the link: all of them (lossless), or only if the host has read what
+    /// was written before (else they are dropped, counted).
+    fn write(&mut self, cycles: &[PacedCycle]) -> Result<(), LinkError> {
+        if cycles.is_empty() {
+            return Ok(());
+        }
+        let line_free = self.lossless || self.link.try_flush()?;
+        for cycle in cycles {
+            if line_free {
+                self.link.queue_cycle(&cycle.values)?;
+                self.clock.sent(cycle.counter);
+            } else {
+                self.clock.dropped_cycles += 1;
+            }
+        }
+        Ok(())
+    }
 }
 
 impl SensorPort {
-    /// Sends the samples of one period, in order, with one write: first answers the command
-    /// lines that have arrived ([`SensorPort::poll_commands`]), then [`SensorPort::queue`] and
-    /// [`SensorPort::flush`]. For a loop that does not wait on [`SensorPort::answer_commands`]
-    /// between periods (real time).
-    ///
-    /// # Errors
-    /// Link errors.
-    pub async fn emit(&mut self, samples: &[IldSample], fsm: &mut CanLink) -> anyhow::Result<()> {
-        self.poll_commands()?;
-        self.queue(samples, fsm).await?;
-        self.flush(fsm).await
-    }
-
-    /// Counts the samples of a period as dropped without queueing them: the period's send
-    /// allowance ran out on the mirror's link before the sensor's turn (real time), so every
-    /// sample is still counted once, sent or dropped.
-    pub fn count_unsent(&mut self, samples: &[IldSample]) {
+    /// Offers the samples of one period to the sensor's output, in order, without writing
+    /// anything: on the ILD line each sample's output cycle (as the settings make it, none
+    /// while the output is off) goes onto the line ([`IldLine`]), from which
+    /// [`SensorPort::release`] writes it once it has arrived; on CAN the samples wait for
+    /// [`SensorPort::release`] to queue their Distance frames.
+    pub fn offer(&mut self, samples: &[IldSample]) {
         match self {
             SensorPort::Off => {}
             SensorPort::Ild(port) => {
                 for sample in samples {
-                    if port.settings.cycle(sample).is_some() {
-                        port.clock.count(sample, false);
+                    if let Some(values) = port.settings.cycle(sample) {
+                        port.clock.measured(sample);
+                        port.line.push(sample.t_s, sample.counter, values);
                     }
                 }
+                port.clock.lost_to_baud = port.line.lost();
             }
-            SensorPort::Can(clock) => {
-                for sample in samples {
-                    clock.count(sample, false);
-                }
-            }
+            SensorPort::Can(_, pending) => pending.extend_from_slice(samples),
         }
     }
 
-    /// Queues the samples of one period, in order, without writing them and without looking
-    /// for commands (a loop that waits on [`SensorPort::answer_commands`] between periods
-    /// answers them there; lockstep does, and saves a read per period). On the ILD line each
-    /// sample's output cycle is queued as the settings make it (none while the output is
-    /// off), never waiting: unless [`lossless`](SensorPort::lossless), while the host has not
-    /// read the previous period's bytes, this period's cycles are dropped whole (counted). On
-    /// CAN the Distance frames are queued on `fsm` behind the frames queued before them.
+    /// Queues, without writing, the ILD line's cycles that have arrived by loop time
+    /// `until_s`, in order: unless [`lossless`](SensorPort::lossless), while the host has not
+    /// read what was written before, they are dropped (counted). On CAN the offered samples'
+    /// Distance frames are queued on `fsm` behind the frames queued before them.
     ///
     /// # Errors
     /// Link errors.
-    pub async fn queue(&mut self, samples: &[IldSample], fsm: &mut CanLink) -> anyhow::Result<()> {
+    pub async fn release(&mut self, until_s: f64, fsm: &mut CanLink) -> anyhow::Result<()> {
         match self {
             SensorPort::Off => {}
             SensorPort::Ild(port) => {
-                let line_free = port.lossless || port.link.try_flush()?;
-                for sample in samples {
-                    if let Some(values) = port.settings.cycle(sample) {
-                        if line_free {
-                            port.link.queue_cycle(&values)?;
-                        }
-                        port.clock.count(sample, line_free);
-                    }
-                }
+                let due = port.line.due(until_s);
+                port.write(&due)?;
             }
-            SensorPort::Can(clock) => {
-                for sample in samples {
-                    clock.count(sample, true);
-                    let counter = sample.counter;
+            SensorPort::Can(clock, pending) => {
+                // A sample leaves `pending` only once its frame is queued: a release cut short
+                // (the send allowance ran out) leaves the rest for the next one.
+                while let Some(&sample) = pending.first() {
                     let sensor_time_us =
                         ((sample.t_s * 1e6).round() as u64 & u64::from(U24_MAX)) as u32;
                     let distance = Distance {
                         value: sample.value,
-                        counter,
+                        counter: sample.counter,
                         sensor_time_us,
                     };
                     fsm.queue(&Message::Distance(distance).encode()?).await?;
+                    pending.remove(0);
+                    clock.measured(&sample);
+                    clock.sent(sample.counter);
                 }
             }
         }
         Ok(())
     }
 
-    /// Writes what [`SensorPort::queue`] queued: on the ILD line as far as the line takes it
+    /// The end of the run: queues everything the sensor's output still holds (on the ILD line,
+    /// what it would still deliver), as [`SensorPort::release`] does.
+    ///
+    /// # Errors
+    /// Link errors.
+    pub async fn release_all(&mut self, fsm: &mut CanLink) -> anyhow::Result<()> {
+        if let SensorPort::Ild(port) = self {
+            let rest = port.line.drain();
+            port.write(&rest)?;
+        }
+        self.release(f64::INFINITY, fsm).await
+    }
+
+    /// Real time: the sensor's part of the tick that starts at loop time `now_s`: answers the
+    /// command lines that have arrived ([`SensorPort::poll_commands`]), then
+    /// [`SensorPort::release`] and [`SensorPort::flush`].
+    ///
+    /// # Errors
+    /// Link errors.
+    pub async fn emit(&mut self, now_s: f64, fsm: &mut CanLink) -> anyhow::Result<()> {
+        self.poll_commands()?;
+        self.release(now_s, fsm).await?;
+        self.flush(fsm).await
+    }
+
+    /// Writes what [`SensorPort::release`] queued: on the ILD line as far as the line takes it
     /// now (never waiting) or, [`lossless`](SensorPort::lossless), all of it (waiting while
     /// the line is full: the caller bounds the wait); on CAN with the frames queued on `fsm`.
     ///
@@ -313,7 +384,7 @@ impl SensorPort {
             SensorPort::Ild(port) => {
                 port.link.try_flush()?;
             }
-            SensorPort::Can(_) => fsm.flush().await?,
+            SensorPort::Can(..) => fsm.flush().await?,
         }
         Ok(())
     }
@@ -326,10 +397,12 @@ impl SensorPort {
             SensorPort::Ild(port) => Some(SensorSummary {
                 clock: port.clock,
                 commands: port.commands,
+                baud: Some(port.link.baud()),
             }),
-            SensorPort::Can(clock) => Some(SensorSummary {
+            SensorPort::Can(clock, _) => Some(SensorSummary {
                 clock: *clock,
                 commands: CommandCounts::default(),
+                baud: None,
             }),
         }
     }
@@ -342,21 +415,25 @@ impl SensorClockTrack {
         SensorClockTrack {
             samples: 0,
             dropped_cycles: 0,
+            lost_to_baud: 0,
             counter_zero_s: None,
+            first_sent_counter: None,
             measuring_rate_hz,
         }
     }
 
-    /// Counts one sample, `sent` or dropped; the first one fixes the loop time of counter 0.
-    pub fn count(&mut self, sample: &IldSample, sent: bool) {
+    /// A sample was measured with an output cycle; the first one fixes the loop time of
+    /// counter 0.
+    pub fn measured(&mut self, sample: &IldSample) {
         if self.counter_zero_s.is_none() {
             self.counter_zero_s =
                 Some(sample.t_s - f64::from(sample.counter) / self.measuring_rate_hz);
         }
-        if sent {
-            self.samples += 1;
-        } else {
-            self.dropped_cycles += 1;
-        }
+    }
+
+    /// The cycle of the sample with measured-value counter `counter` was sent.
+    pub fn sent(&mut self, counter: u32) {
+        self.samples += 1;
+        self.first_sent_counter.get_or_insert(counter);
     }
 }

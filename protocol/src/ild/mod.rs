@@ -9,6 +9,11 @@ pub mod command;
 pub mod stream;
 pub mod value;
 
-pub use command::{IldCommand, IldCommandError, IldInfo, IldReply, IldReplyParser};
-pub use stream::{IldDecoder, IldStreamError, IldWord, encode_cycle, encode_word};
+pub use command::{
+    AddValue, AddValueSet, IldCommand, IldCommandError, IldInfo, IldOutputInfo, IldReply,
+    IldReplyParser, MeasuringRate,
+};
+pub use stream::{
+    BaudShortfall, IldDecoder, IldStreamError, IldWord, check_baud, encode_cycle, encode_word,
+};
 pub use value::{IldError, IldValue, MeasuringRange};

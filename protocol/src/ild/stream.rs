@@ -24,18 +24,77 @@ const H_MORE_BIT: u8 = 0x40;
 const PAYLOAD_MASK: u8 = 0x3F;
 /// Bytes per value on the line.
 pub const BYTES_PER_VALUE: usize = 3;
-/// Bits per value the manual's baud-rate rule counts (3 bytes 8N1 are 30; the manual's
-/// rule `BR > 33 * rate_kHz * values / reduction` kBaud keeps about 10 % margin).
+/// Bits one byte takes on the line: start bit, 8 data bits, stop bit (8N1).
+pub const BITS_PER_BYTE: f64 = 10.0;
+/// Bits per value the manual's baud-rate rule counts: "per value transmitted 3 bytes are
+/// transmitted, with real 11 bit used on the serial line" (chap. 7, p. 57, Fig. 32), so the rule
+/// `BR > 33 * MR * m / ODR` keeps 10 % over the 30 bits 8N1 takes.
 pub const BAUD_RULE_BITS_PER_VALUE: f64 = 33.0;
 /// The factory baud rate.
 pub const FACTORY_BAUD: u32 = 691_200;
 
-/// The smallest baud rate the manual allows for `values_per_cycle` values at
-/// `measuring_rate_hz`, with every `reduction`-th cycle output (`OUTREDUCE`).
+/// The baud rate the manual's rule (chap. 7, p. 57, Fig. 32) asks more than for
+/// `values_per_cycle` values at `measuring_rate_hz`, with every `reduction`-th cycle output
+/// (`OUTREDUCE`, the rule's ODR).
 #[must_use]
 pub fn required_baud(measuring_rate_hz: f64, values_per_cycle: u32, reduction: u32) -> f64 {
     BAUD_RULE_BITS_PER_VALUE * measuring_rate_hz * f64::from(values_per_cycle)
         / f64::from(reduction.max(1))
+}
+
+/// How long the line takes to carry one output cycle of `values_per_cycle` values at `baud`,
+/// s (3 bytes of 10 bits a value): the delay from the cycle's first bit to its last.
+#[must_use]
+pub fn cycle_transmit_s(values_per_cycle: u32, baud: u32) -> f64 {
+    (BYTES_PER_VALUE as f64 * BITS_PER_BYTE * f64::from(values_per_cycle)) / f64::from(baud.max(1))
+}
+
+/// A sensor configuration whose values per cycle do not fit its line: the manual's rule
+/// `BR > 33 * MR * m / ODR` (chap. 7, p. 57) does not hold, and a real sensor would hold back
+/// cycles the line cannot carry.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error(
+    "the ILD line at {baud} baud cannot carry {values_per_cycle} value(s) per cycle ({values}) \
+     at {rate_khz} kHz: the manual's rule BR > 33 x MR x m / ODR needs more than \
+     {required_baud:.0} baud",
+    rate_khz = measuring_rate_hz / 1e3
+)]
+pub struct BaudShortfall {
+    /// The measuring rate, Hz.
+    pub measuring_rate_hz: f64,
+    /// The values of a cycle, named (`DIST1 COUNTER`).
+    pub values: String,
+    /// How many values a cycle has.
+    pub values_per_cycle: u32,
+    /// The line's baud rate.
+    pub baud: u32,
+    /// The baud rate the rule asks more than.
+    pub required_baud: f64,
+}
+
+/// Checks that `values_per_cycle` values (named `values`) per cycle at `measuring_rate_hz`,
+/// every cycle output, fit a line at `baud` (the manual's rule, strictly greater).
+///
+/// # Errors
+/// [`BaudShortfall`] naming the rate, the values, the baud and the baud the rule needs.
+pub fn check_baud(
+    measuring_rate_hz: f64,
+    values: &str,
+    values_per_cycle: u32,
+    baud: u32,
+) -> Result<(), BaudShortfall> {
+    let required = required_baud(measuring_rate_hz, values_per_cycle, 1);
+    if f64::from(baud) > required {
+        Ok(())
+    } else {
+        Err(BaudShortfall {
+            measuring_rate_hz,
+            values: values.to_owned(),
+            values_per_cycle,
+            baud,
+            required_baud: required,
+        })
+    }
 }
 
 /// One 18-bit value from the stream.
@@ -248,5 +307,29 @@ mod tests {
     fn twenty_khz_with_one_value_needs_more_than_660_kbaud() {
         assert!((required_baud(20_000.0, 1, 1) - 660_000.0).abs() < 1e-6);
         assert!(f64::from(FACTORY_BAUD) > required_baud(20_000.0, 1, 1));
+        assert!((required_baud(20_000.0, 2, 2) - 660_000.0).abs() < 1e-6);
+        assert!((required_baud(20_000.0, 2, 0) - 1_320_000.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn the_baud_rule_refuses_the_counter_at_20_khz_and_names_the_numbers() {
+        assert_eq!(check_baud(20_000.0, "DIST1", 1, FACTORY_BAUD), Ok(()));
+        let error = check_baud(20_000.0, "DIST1 COUNTER", 2, FACTORY_BAUD).unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "the ILD line at 691200 baud cannot carry 2 value(s) per cycle (DIST1 COUNTER) at \
+             20 kHz: the manual's rule BR > 33 x MR x m / ODR needs more than 1320000 baud"
+        );
+        assert!(check_baud(20_000.0, "DIST1 COUNTER", 2, 921_600).is_err());
+        assert!(check_baud(10_000.0, "DIST1 COUNTER", 2, FACTORY_BAUD).is_ok());
+        // Strictly greater: exactly the rule's figure is not enough.
+        assert!(check_baud(20_000.0, "DIST1", 1, 660_000).is_err());
+        assert!(check_baud(20_000.0, "DIST1", 1, 660_001).is_ok());
+    }
+
+    #[test]
+    fn a_cycle_takes_thirty_bits_a_value() {
+        assert!((cycle_transmit_s(1, 691_200) - 30.0 / 691_200.0).abs() < 1e-15);
+        assert!((cycle_transmit_s(2, 921_600) - 60.0 / 921_600.0).abs() < 1e-15);
     }
 }

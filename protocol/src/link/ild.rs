@@ -2,6 +2,10 @@
 //! measured-value stream as output cycles with their arrival times and exchanges ASCII
 //! commands; the device end (the emulated sensor) sends cycles and answers commands.
 //!
+//! The host ends its command lines in CR LF ([`COMMAND_EOL`]); the device end takes CR, LF or
+//! CR LF, or LF alone when told to ([`LineEnding`]). The host tells the device's echo of a
+//! command apart whatever the device's echo setting ([`IldReplyParser`]).
+//!
 //! The stream and the command replies share the line. While the host waits for a reply, the
 //! bytes go to the protocol's reply parser up to the `->` prompt (bytes with bit 7 set, which
 //! ASCII never has, are left out); the rest go to the stream decoder. Value bytes that arrive
@@ -21,8 +25,10 @@ use super::pty::PtyPair;
 use super::role::Role;
 use super::uri::LinkUri;
 use crate::ild::IldValue;
-use crate::ild::command::{IldCommand, IldCommandError, IldReply, IldReplyParser};
-use crate::ild::stream::{FACTORY_BAUD, IldDecoder, encode_cycle};
+use crate::ild::command::{
+    COMMAND_EOL, IldCommand, IldCommandError, IldReply, IldReplyParser, LineEnding,
+};
+use crate::ild::stream::{IldDecoder, encode_cycle};
 
 /// Bytes read from the line at a time.
 const READ_CHUNK: usize = 4096;
@@ -79,9 +85,10 @@ pub struct IldCounters {
 pub struct IldLink {
     line: SerialLine,
     role: Role,
+    baud: u32,
     assembler: IldCycleAssembler,
     cycles: VecDeque<IldCycle>,
-    echo: bool,
+    line_ending: LineEnding,
     reply_parser: Option<IldReplyParser>,
     replies: VecDeque<IldReply>,
     command_line: Vec<u8>,
@@ -175,30 +182,40 @@ impl IldLink {
                 detail: "the ILD stream over a CAN link (use ild:PATH[@BAUD])".to_owned(),
             });
         };
-        Ok(Self::on_line(SerialLine::open(path, *baud, &name)?, role))
+        Ok(Self::on_line(
+            SerialLine::open(path, *baud, &name)?,
+            *baud,
+            role,
+        ))
     }
 
-    /// Runs the ILD line as `role` on the master end of `pair` (the peer opens the slave path).
-    /// The link is named `ild:<slave path>@691200`.
+    /// Runs the ILD line as `role` on the master end of `pair` (the peer opens the slave path),
+    /// standing for a line at `baud` (a pty carries any rate; the emulated sensor paces its
+    /// bytes at this one). The link is named `ild:<slave path>@<baud>`.
     ///
     /// # Errors
     /// [`LinkError::Open`] when the master cannot be registered with tokio.
-    pub fn open_pty(pair: PtyPair, role: Role) -> LinkResult<IldLink> {
+    pub fn open_pty(pair: PtyPair, baud: u32, role: Role) -> LinkResult<IldLink> {
         let name = LinkUri::Ild {
             path: pair.slave_path().to_owned(),
-            baud: FACTORY_BAUD,
+            baud,
         }
         .to_string();
-        Ok(Self::on_line(SerialLine::from_pty(pair, &name)?, role))
+        Ok(Self::on_line(
+            SerialLine::from_pty(pair, &name)?,
+            baud,
+            role,
+        ))
     }
 
-    fn on_line(line: SerialLine, role: Role) -> IldLink {
+    fn on_line(line: SerialLine, baud: u32, role: Role) -> IldLink {
         IldLink {
             line,
             role,
+            baud,
             assembler: IldCycleAssembler::new(1),
             cycles: VecDeque::new(),
-            echo: false,
+            line_ending: LineEnding::default(),
             reply_parser: None,
             replies: VecDeque::new(),
             command_line: Vec::new(),
@@ -226,10 +243,16 @@ impl IldLink {
         self.assembler.set_values_per_cycle(values);
     }
 
-    /// Host: whether the sensor repeats commands in its replies (`ECHO ON`); set
-    /// automatically by a successful `ECHO ON|OFF` command. Default off.
-    pub fn set_echo(&mut self, echo: bool) {
-        self.echo = echo;
+    /// The line's baud rate (as its URI gives it; [`FACTORY_BAUD`](crate::ild::stream::FACTORY_BAUD)
+    /// when the URI names none).
+    #[must_use]
+    pub fn baud(&self) -> u32 {
+        self.baud
+    }
+
+    /// Device: how command lines end ([`LineEnding::CrOrLf`] unless told otherwise).
+    pub fn set_line_ending(&mut self, ending: LineEnding) {
+        self.line_ending = ending;
     }
 
     /// Records the raw bytes received (and sent, if the capture has a writer for them).
@@ -272,8 +295,9 @@ impl IldLink {
         Ok(self.cycles.pop_front())
     }
 
-    /// Host: sends `command` and waits up to `timeout` for its reply (up to the `->` prompt).
-    /// A refused command is a reply with `error` set, not an `Err`.
+    /// Host: sends `command` (ending in [`COMMAND_EOL`]) and waits up to `timeout` for its
+    /// reply (up to the `->` prompt). A refused command is a reply with `error` set, not an
+    /// `Err`.
     ///
     /// # Errors
     /// [`LinkError::NoReply`] naming the command; line errors.
@@ -282,16 +306,13 @@ impl IldLink {
         command: &IldCommand,
         timeout: Duration,
     ) -> LinkResult<IldReply> {
-        let reply = self.exchange_line(command.encode(), timeout).await?;
-        if let (IldCommand::Echo(Some(on)), true) = (command, reply.is_ok()) {
-            self.echo = *on;
-        }
-        Ok(reply)
+        self.exchange_line(command.line(), COMMAND_EOL, timeout)
+            .await
     }
 
-    /// Host, for conformance testing only: sends `line` and a CR as given (an unknown command,
-    /// a bad parameter, an overlong line) and waits up to `timeout` for the reply, which should
-    /// be a refusal. Use [`IldLink::command`] for real commands.
+    /// Host, for conformance testing only: sends `line` and [`COMMAND_EOL`] as given (an
+    /// unknown command, a bad parameter, an overlong line) and waits up to `timeout` for the
+    /// reply, which should be a refusal. Use [`IldLink::command`] for real commands.
     ///
     /// # Errors
     /// [`LinkError::Protocol`] for a line holding CR or LF or longer than
@@ -311,13 +332,34 @@ impl IldLink {
                 ),
             });
         }
-        self.exchange_line(format!("{line}\r"), timeout).await
+        self.exchange_line(line.to_owned(), COMMAND_EOL, timeout)
+            .await
     }
 
-    /// Host: sends one command line (with its CR) and waits for the reply.
-    async fn exchange_line(&mut self, text: String, timeout: Duration) -> LinkResult<IldReply> {
+    /// Host, for tests of a device's line ending: sends `command` ending in `eol` (`"\r"`,
+    /// `"\n"`) instead of [`COMMAND_EOL`], and waits for its reply as [`IldLink::command`].
+    ///
+    /// # Errors
+    /// As [`IldLink::command`].
+    pub async fn command_ending_in(
+        &mut self,
+        command: &IldCommand,
+        eol: &str,
+        timeout: Duration,
+    ) -> LinkResult<IldReply> {
+        self.exchange_line(command.line(), eol, timeout).await
+    }
+
+    /// Host: sends one command line and its line end and waits for the reply.
+    async fn exchange_line(
+        &mut self,
+        line: String,
+        eol: &str,
+        timeout: Duration,
+    ) -> LinkResult<IldReply> {
         self.replies.clear();
-        self.reply_parser = Some(IldReplyParser::new(self.echo));
+        self.reply_parser = Some(IldReplyParser::new(&line));
+        let text = line + eol;
         self.send_bytes(text.as_bytes()).await?;
         let exchange = async {
             loop {
@@ -514,7 +556,15 @@ impl IldLink {
 
     fn absorb_as_device(&mut self, bytes: &[u8]) {
         for &byte in bytes {
-            if byte == b'\r' || byte == b'\n' {
+            let ends_line = match self.line_ending {
+                LineEnding::CrOrLf => byte == b'\r' || byte == b'\n',
+                LineEnding::Lf => byte == b'\n',
+            };
+            if byte == b'\r' && !ends_line {
+                // An LF-only device ignores CR.
+                continue;
+            }
+            if ends_line {
                 let line = String::from_utf8_lossy(&self.command_line)
                     .trim()
                     .to_owned();
