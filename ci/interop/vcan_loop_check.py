@@ -29,7 +29,8 @@ Checks:
      and the sections);
    - report.json is identical in all three, every number compared exactly (JSON floats are written
      shortest-round-trip, so equal numbers are equal bits), except the fields that name or count the
-     transport itself: scenario.links (the links asked for), links.sensor (the ILD stream's own
+     transport itself: scenario.links (the links asked for), links.mirror_link (the mirror link's
+     own report: its URI, transport, adapter and traffic), links.sensor (the ILD stream's own
      counters, zero when the sensor is on CAN) and emulator.summary.link.frames_sent (the Distance
      frames travel on the mirror's link on CAN, on their own line with ILD), sensor_setup and
      emulator.summary.sensor.commands_answered (the ILD line is configured over its ASCII
@@ -93,6 +94,10 @@ TRANSPORT_FIELDS = {
         ("samples", "sensor_clock", "counter_offset"),
     ],
 }
+# The mirror link's own report (its URI, transport, adapter and traffic) describes the transport
+# in every compared folder.
+for fields in TRANSPORT_FIELDS.values():
+    fields.append(("links", "mirror_link"))
 CANDUMP_LINE = re.compile(r"^\((\d+\.\d+)\) (\S+) ([0-9A-F]{3}|[0-9A-F]{8})#([0-9A-F]*)$")
 
 from tally import Tally

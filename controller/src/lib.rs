@@ -42,6 +42,7 @@
 //!   (`scanhil decode`).
 
 pub mod accuracy;
+pub mod closed_loop_figures;
 pub mod continuous;
 pub mod decode;
 pub mod design;

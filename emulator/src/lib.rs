@@ -18,7 +18,10 @@
 //! - [`latency`]: an axis's delay beyond one control period, on its measured angle.
 //! - [`amplifier`], [`cross_talk`], [`power`], [`angle_sensor`]: the drive and the angle
 //!   sensor.
+//! - [`second_mode`], [`current_loop`]: the mirror's second mode; the amplifiers' current
+//!   loop with the coil, back-EMF and voltage limit.
 //! - [`drive_model`]: the composed linear dynamics of the active parts.
+//! - [`drive_stepper`]: steps them over a period, switching to the saturated amplifier's model.
 //! - [`part_cost`]: what each active part costs per control period, measured before a run.
 //! - [`integrator`]: exact ZOH, RK4, trapezoid, Euler, and the stability check.
 //! - [`precision`]: the integrators' error against run time (work-precision study).
@@ -27,7 +30,9 @@
 pub mod amplifier;
 pub mod angle_sensor;
 pub mod cross_talk;
+pub mod current_loop;
 pub mod drive_model;
+pub mod drive_stepper;
 pub mod integrator;
 pub mod latency;
 pub mod mirror;
@@ -37,6 +42,7 @@ pub mod plant;
 pub mod power;
 pub mod precision;
 pub mod scene;
+pub mod second_mode;
 pub mod sensor;
 pub mod sensor_faults;
 pub mod serve;

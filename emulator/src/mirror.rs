@@ -26,6 +26,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::second_mode::SecondModeConfig;
 pub use scanhil_protocol::plant_units::SensingAxis;
 use scanhil_protocol::plant_units::SensingPair;
 
@@ -44,6 +45,8 @@ pub struct AxisDynamics {
     pub damping_ratio: f64,
     /// Eq. 4's delay Ta on this axis, in s; `None` is one control period.
     pub delay_s: Option<f64>,
+    /// The axis's second mechanical mode (acts with part `second_mode`).
+    pub second_mode: SecondModeConfig,
 }
 
 impl AxisDynamics {
@@ -93,6 +96,9 @@ pub struct AxisOverrides {
     /// Eq. 4's delay Ta on this axis, in s.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub delay_s: Option<f64>,
+    /// This axis's second mode (part `second_mode`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub second_mode: Option<SecondModeConfig>,
 }
 
 impl AxisOverrides {
@@ -120,6 +126,9 @@ pub struct MirrorConfig {
     /// at most [`MAX_DELAY_PERIODS`].
     #[serde(skip_serializing_if = "Option::is_none")]
     pub delay_s: Option<f64>,
+    /// The second mechanical mode of both axes, acting with part `second_mode` (default: the
+    /// bench scene's 1.2 kHz, [`SecondModeConfig::default`]).
+    pub second_mode: SecondModeConfig,
     /// Mechanical angles at t = 0, in rad.
     pub initial_angles_rad: SensingPair,
     /// The alpha axis's own values (`y` is accepted for `alpha`, as in `axes`).
@@ -138,6 +147,7 @@ impl Default for MirrorConfig {
             natural_freq_rad_s: 140.68,
             damping_ratio: 3.21e-2,
             delay_s: None,
+            second_mode: SecondModeConfig::default(),
             initial_angles_rad: SensingPair::default(),
             alpha: AxisOverrides::default(),
             beta: AxisOverrides::default(),
@@ -154,6 +164,7 @@ impl MirrorConfig {
             natural_freq_rad_s: Some(self.natural_freq_rad_s),
             damping_ratio: Some(self.damping_ratio),
             delay_s: self.delay_s,
+            second_mode: Some(self.second_mode),
         };
         validate_values(&common, "mirror.", period_s)?;
         for axis in SensingAxis::BOTH {
@@ -187,6 +198,7 @@ impl MirrorConfig {
             natural_freq_rad_s: own.natural_freq_rad_s.unwrap_or(self.natural_freq_rad_s),
             damping_ratio: own.damping_ratio.unwrap_or(self.damping_ratio),
             delay_s: own.delay_s.or(self.delay_s),
+            second_mode: own.second_mode.unwrap_or(self.second_mode),
         }
     }
 
@@ -233,6 +245,9 @@ fn validate_values(
             "damping_ratio",
             format!("must be finite and >= 0 (a negatively damped mirror is unstable), got {zeta}"),
         );
+    }
+    if let Some(mode) = &values.second_mode {
+        mode.validate(&format!("{prefix}second_mode."))?;
     }
     if let Some(delay) = values.delay_s {
         // A relative tolerance lets a delay written as one period in decimal pass.

@@ -23,13 +23,14 @@ use serde::Serialize;
 use scanhil_protocol::plant_units::{ActuatorPair, RAD_PER_OUTPUT_UNIT, SensingPair};
 
 use crate::amplifier::AmplifierConfig;
-use crate::angle_sensor::AngleSensor;
-use crate::drive_model::DriveModel;
-use crate::integrator::{StabilityError, Stepper};
+use crate::angle_sensor::{AngleSensor, Nonlinearity};
+use crate::drive_model::{DriveModel, DriveParts};
+use crate::drive_stepper::DriveStepper;
+use crate::integrator::StabilityError;
 use crate::latency::OutputLatency;
 use crate::mirror::SensingAxis;
 use crate::optics::{Optics, OpticsError};
-use crate::power::{PowerAction, PowerMonitor, coil_resistance_ohm};
+use crate::power::{PowerAction, PowerMonitor};
 use crate::scene::{Part, Scene};
 use crate::sensor::{Ild2300, IldSample, SensorError};
 use scanhil_scene::surface::{Surface, SurfaceError};
@@ -103,6 +104,14 @@ pub enum PlantEvent {
     PowerFault {
         /// The window mean the currents would have reached, in W.
         mean_w: f64,
+    },
+    /// An amplifier's output stood at its supply's voltage limit in this period (part
+    /// `current_loop`): the coil current lagged its command by more than the loop's own lag.
+    VoltageLimited {
+        /// Coil pair a saturated.
+        a: bool,
+        /// Coil pair b saturated.
+        b: bool,
     },
 }
 
@@ -232,7 +241,7 @@ pub struct Plant {
     period_s: f64,
     active_parts: Vec<Part>,
     model: DriveModel,
-    stepper: Option<Stepper>,
+    stepper: Option<DriveStepper>,
     state: Vec<f64>,
     /// Each axis's delay beyond one period, on its measured angle (`[alpha, beta]`).
     latencies: [Option<OutputLatency>; 2],
@@ -242,6 +251,7 @@ pub struct Plant {
     amplifier: Option<AmplifierConfig>,
     power: Option<PowerMonitor>,
     resistance_ohm: f64,
+    nonlinearity: Option<Nonlinearity>,
     angle_sensor: Option<AngleSensor>,
     optical: Option<OpticalChain>,
     pending_a: ActuatorPair,
@@ -249,20 +259,20 @@ pub struct Plant {
 }
 
 impl Plant {
-    /// Builds the listed parts of `scene` (nothing else) and checks the integrator's stability.
+    /// Builds the listed parts of `scene` (nothing else) and checks the integrators'
+    /// stability (every model the current loop's voltage limit can switch to included).
     pub fn from_scene(scene: &Scene) -> Result<Plant, PlantError> {
         let period_s = scene.period_s();
-        let mirror = scene.has(Part::Axes).then_some(&scene.mirror);
-        let amplifier = scene.has(Part::Amplifier).then(|| scene.amplifier.clone());
-        let cross_talk = scene.has(Part::CrossTalk).then_some(&scene.cross_talk);
-        let model = DriveModel::new(mirror, amplifier.as_ref(), cross_talk);
+        let resistance_ohm = scene.coil_resistance_ohm();
+        let model = DriveModel::build(&DriveParts::of_scene(scene));
         let stepper = if model.states() > 0 {
-            let stepper = Stepper::new(&model, period_s, scene.integrator).map_err(|cause| {
-                PlantError::Unstable {
-                    scene: scene.name.clone(),
-                    cause,
-                }
-            })?;
+            let stepper =
+                DriveStepper::new(&model, period_s, scene.integrator).map_err(|cause| {
+                    PlantError::Unstable {
+                        scene: scene.name.clone(),
+                        cause,
+                    }
+                })?;
             Some(stepper)
         } else {
             None
@@ -270,22 +280,20 @@ impl Plant {
         let init = scene.mirror.initial_angles_rad;
         let state = model.initial_state([init.alpha, init.beta]);
         let mut latencies = [None, None];
-        for ((latency, slot), axis) in latencies
+        for ((latency, row), axis) in latencies
             .iter_mut()
-            .zip(model.angle_index)
+            .zip(&model.measured_rows)
             .zip(SensingAxis::BOTH)
         {
             let extra_s = scene.mirror.axis(axis).extra_delay_s(period_s);
-            if let Some(index) = slot
+            if let Some(row) = row
                 && extra_s > period_s * 1e-9
             {
-                *latency = Some(OutputLatency::new(&model, index, extra_s, period_s, &state));
+                let initial = row.value(&state, [0.0, 0.0, 1.0]);
+                *latency = Some(OutputLatency::new(&model, row, extra_s, period_s, initial));
             }
         }
-        let resistance_ohm = scene
-            .power_limit
-            .coil_resistance_ohm
-            .unwrap_or_else(|| coil_resistance_ohm(&scene.mirror));
+        let amplifier = scene.has(Part::Amplifier).then(|| scene.amplifier.clone());
         Ok(Plant {
             scene_name: scene.name.clone(),
             period_s,
@@ -301,6 +309,9 @@ impl Plant {
                 .has(Part::PowerLimit)
                 .then(|| PowerMonitor::new(&scene.power_limit, resistance_ohm, period_s)),
             resistance_ohm,
+            nonlinearity: scene
+                .has(Part::AngleSensorNonlinearity)
+                .then(|| Nonlinearity::new(scene.angle_sensor.nonlinearity_percent)),
             angle_sensor: scene
                 .has(Part::AngleSensorNoise)
                 .then(|| AngleSensor::new(&scene.angle_sensor, scene.seed)),
@@ -343,7 +354,9 @@ impl Plant {
     /// The integrator in use as `(method, sub-steps)`, if anything is integrated.
     #[must_use]
     pub fn integrator(&self) -> Option<(crate::integrator::Method, u32)> {
-        self.stepper.as_ref().map(|s| (s.method(), s.substeps()))
+        self.stepper
+            .as_ref()
+            .map(|s| (s.linear().method(), s.linear().substeps()))
     }
 
     /// The mechanical angles now (at `period_index * Ta`), in rad.
@@ -385,6 +398,30 @@ impl Plant {
         if let Some(power) = &mut self.power {
             power.reset_fault();
         }
+    }
+
+    /// What the angle sensor sees at the end of a period stepped with `commands`: the measured
+    /// outputs of the drive model (the second mode, the pickup, the sensor's bandwidth), each
+    /// delayed by its axis's latency; an axis that does not move reports its fixed angle.
+    fn reported_angles_rad(&mut self, commands: [f64; 2]) -> SensingPair {
+        let u = [commands[0], commands[1], 1.0];
+        let mut reported = self.fixed_angles_rad;
+        let [alpha, beta] = &mut self.latencies;
+        for ((row, latency), value) in self
+            .model
+            .measured_rows
+            .iter()
+            .zip([alpha, beta])
+            .zip([&mut reported.alpha, &mut reported.beta])
+        {
+            let Some(row) = row else { continue };
+            let units = match latency {
+                Some(latency) => latency.step(&self.start_state, u, &self.state),
+                None => row.value(&self.state, u),
+            };
+            *value = units * RAD_PER_OUTPUT_UNIT;
+        }
+        reported
     }
 
     /// Advances one control period with the command `coil_currents_a` (see the module doc for
@@ -433,29 +470,24 @@ impl Plant {
         if delayed {
             self.start_state.copy_from_slice(&self.state);
         }
-        let input = [applied.a, applied.b];
+        let commands = [applied.a, applied.b];
         if let Some(stepper) = &mut self.stepper {
-            stepper.step(&mut self.state, input);
-        }
-        let true_angles_rad = self.true_angles_rad();
-        let mut reported_rad = true_angles_rad;
-        if delayed {
-            let [alpha, beta] = &mut self.latencies;
-            for (latency, reported) in [
-                (alpha, &mut reported_rad.alpha),
-                (beta, &mut reported_rad.beta),
-            ] {
-                if let Some(latency) = latency {
-                    *reported =
-                        latency.step(&self.start_state, input, &self.state) * RAD_PER_OUTPUT_UNIT;
-                }
+            let [a, b] = stepper.step(&mut self.state, commands);
+            if a || b {
+                events.push(PlantEvent::VoltageLimited { a, b });
             }
         }
+        let true_angles_rad = self.true_angles_rad();
+        let reported_rad = self.reported_angles_rad(commands);
         let start_s = self.period_index as f64 * self.period_s;
         let end_s = (self.period_index + 1) as f64 * self.period_s;
         let sensor_samples = match &mut self.optical {
             Some(chain) => chain.samples(start_s, end_s, start_rad, true_angles_rad),
             None => Vec::new(),
+        };
+        let reported_rad = match &self.nonlinearity {
+            Some(nonlinearity) => nonlinearity.apply(reported_rad),
+            None => reported_rad,
         };
         let measured_angles_rad = match &mut self.angle_sensor {
             Some(sensor) => sensor.measure(reported_rad),

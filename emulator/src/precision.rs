@@ -20,7 +20,8 @@ use serde::Serialize;
 use scanhil_protocol::plant_units::{SensingPair, actuator_from_sensing};
 
 use crate::drive_model::DriveModel;
-use crate::integrator::{IntegratorConfig, Method, Stepper};
+use crate::drive_stepper::DriveStepper;
+use crate::integrator::{IntegratorConfig, Method};
 use crate::mirror::{MirrorConfig, SensingAxis};
 use crate::power::full_range_current_a;
 
@@ -83,7 +84,11 @@ pub fn lissajous_drive_a(mirror: &MirrorConfig, period_s: f64, periods: usize) -
 }
 
 /// Steps `stepper` through `drive` from rest; the angles (rad) at every period end.
-pub fn simulate(model: &DriveModel, stepper: &mut Stepper, drive: &[[f64; 2]]) -> Vec<[f64; 2]> {
+pub fn simulate(
+    model: &DriveModel,
+    stepper: &mut DriveStepper,
+    drive: &[[f64; 2]],
+) -> Vec<[f64; 2]> {
     let mut x = model.initial_state([0.0, 0.0]);
     drive
         .iter()
@@ -100,7 +105,7 @@ pub fn run_study(setup: &StudySetup) -> Vec<StudyRow> {
     let periods = (setup.duration_s / setup.period_s).round().max(1.0) as usize;
     let drive = lissajous_drive_a(&setup.mirror, setup.period_s, periods);
     let mut reference_stepper =
-        Stepper::new(&setup.model, setup.period_s, IntegratorConfig::default())
+        DriveStepper::new(&setup.model, setup.period_s, IntegratorConfig::default())
             .expect("the exact ZOH map of a stable model is stable");
     let reference = simulate(&setup.model, &mut reference_stepper, &drive);
     let simulated_s = periods as f64 * setup.period_s;
@@ -109,7 +114,7 @@ pub fn run_study(setup: &StudySetup) -> Vec<StudyRow> {
         for &substeps in &setup.substeps {
             let config = IntegratorConfig { method, substeps };
             let step_s = setup.period_s / f64::from(substeps.max(1));
-            let row = match Stepper::new(&setup.model, setup.period_s, config) {
+            let row = match DriveStepper::new(&setup.model, setup.period_s, config) {
                 Err(refusal) => StudyRow {
                     method,
                     substeps,

@@ -15,6 +15,7 @@ use serde::{Deserialize, Serialize};
 use crate::amplifier::AmplifierConfig;
 use crate::angle_sensor::AngleSensorConfig;
 use crate::cross_talk::CrossTalkConfig;
+use crate::current_loop::CurrentLoopConfig;
 use crate::integrator::IntegratorConfig;
 use crate::mirror::MirrorConfig;
 use crate::optics::OpticsConfig;
@@ -32,12 +33,24 @@ pub const DEFAULT_CONTROL_RATE_HZ: f64 = 20_000.0;
 pub enum Part {
     /// The mirror's mechanics (eq. 4) on the axes in `mirror.axes`.
     Axes,
+    /// The mirror's second mechanical mode (`mirror.second_mode`).
+    SecondMode,
     /// The coupling matrix between the sensing axes.
     CrossTalk,
+    /// The angle sensor's pickup of the other axis's current: the cross-talk as a transfer
+    /// function (`cross_talk.pickup_urad_per_a`).
+    CrossTalkPickup,
     /// The current amplifiers: current limit and 10 kHz current loop.
     Amplifier,
+    /// The amplifiers' PI current loop with the coil's R and L, back-EMF and the supply's
+    /// voltage limit, in place of the first-order lag (`current_loop`).
+    CurrentLoop,
     /// The coil power limit (clamp or fault).
     PowerLimit,
+    /// The angle sensor's first-order bandwidth (`angle_sensor.bandwidth_hz`).
+    AngleSensorBandwidth,
+    /// The angle sensor's nonlinearity (`angle_sensor.nonlinearity_percent`).
+    AngleSensorNonlinearity,
     /// Quantisation, noise and offset of the mirror angle sensor.
     AngleSensorNoise,
     /// Noise of the triangulation sensor.
@@ -52,11 +65,16 @@ pub enum Part {
 
 impl Part {
     /// Every part, in the order runs report them.
-    pub const ALL: [Part; 9] = [
+    pub const ALL: [Part; 14] = [
         Part::Axes,
+        Part::SecondMode,
         Part::CrossTalk,
+        Part::CrossTalkPickup,
         Part::Amplifier,
+        Part::CurrentLoop,
         Part::PowerLimit,
+        Part::AngleSensorBandwidth,
+        Part::AngleSensorNonlinearity,
         Part::AngleSensorNoise,
         Part::SensorNoise,
         Part::Optics,
@@ -69,9 +87,14 @@ impl Part {
     pub fn name(self) -> &'static str {
         match self {
             Part::Axes => "axes",
+            Part::SecondMode => "second_mode",
             Part::CrossTalk => "cross_talk",
+            Part::CrossTalkPickup => "cross_talk_pickup",
             Part::Amplifier => "amplifier",
+            Part::CurrentLoop => "current_loop",
             Part::PowerLimit => "power_limit",
+            Part::AngleSensorBandwidth => "angle_sensor_bandwidth",
+            Part::AngleSensorNonlinearity => "angle_sensor_nonlinearity",
             Part::AngleSensorNoise => "angle_sensor_noise",
             Part::SensorNoise => "sensor_noise",
             Part::Optics => "optics",
@@ -80,11 +103,29 @@ impl Part {
         }
     }
 
+    /// Whether the part is a block of the linear drive model ([`crate::drive_model`]), the
+    /// dynamics the integrators step.
+    #[must_use]
+    pub fn is_linear_drive(self) -> bool {
+        matches!(
+            self,
+            Part::Axes
+                | Part::SecondMode
+                | Part::CrossTalk
+                | Part::CrossTalkPickup
+                | Part::Amplifier
+                | Part::CurrentLoop
+                | Part::AngleSensorBandwidth
+        )
+    }
+
     /// The part this one needs, if any.
     #[must_use]
     pub fn requires(self) -> Option<Part> {
         match self {
-            Part::CrossTalk => Some(Part::Axes),
+            Part::CrossTalk | Part::SecondMode | Part::AngleSensorBandwidth => Some(Part::Axes),
+            Part::CrossTalkPickup => Some(Part::CrossTalk),
+            Part::CurrentLoop => Some(Part::Amplifier),
             Part::Shading | Part::Sensor => Some(Part::Optics),
             Part::SensorNoise => Some(Part::Sensor),
             _ => None,
@@ -127,6 +168,9 @@ pub struct Scene {
     /// Current amplifiers (part `amplifier`).
     #[serde(default)]
     pub amplifier: AmplifierConfig,
+    /// The amplifiers' current loop with the coil (part `current_loop`).
+    #[serde(default)]
+    pub current_loop: CurrentLoopConfig,
     /// Coil resistance and power limit (part `power_limit`; the resistance is also used for
     /// the power every step reports).
     #[serde(default)]
@@ -216,6 +260,15 @@ impl Scene {
         self.base_dir.as_deref()
     }
 
+    /// The coil resistance per actuator axis, in ohm: `power_limit.coil_resistance_ohm`, or
+    /// derived from the mirror ([`crate::power::coil_resistance_ohm`]).
+    #[must_use]
+    pub fn coil_resistance_ohm(&self) -> f64 {
+        self.power_limit
+            .coil_resistance_ohm
+            .unwrap_or_else(|| crate::power::coil_resistance_ohm(&self.mirror))
+    }
+
     /// The active parts in the canonical order of [`Part::ALL`].
     #[must_use]
     pub fn active_parts(&self) -> Vec<Part> {
@@ -259,8 +312,18 @@ impl Scene {
         if self.has(Part::Amplifier) {
             self.amplifier.validate()?;
         }
+        if self.has(Part::CurrentLoop) {
+            self.current_loop.validate()?;
+        }
         self.power_limit.validate()?;
-        if self.has(Part::AngleSensorNoise) {
+        if [
+            Part::AngleSensorNoise,
+            Part::AngleSensorBandwidth,
+            Part::AngleSensorNonlinearity,
+        ]
+        .iter()
+        .any(|part| self.has(*part))
+        {
             self.angle_sensor.validate()?;
         }
         Ok(())

@@ -326,6 +326,7 @@ pub fn run_probed(
             can_distances: inbox.distances_mut().take_samples(),
             can_arrivals: None,
             mirror_counters: inbox.counters(),
+            mirror_link: None,
             node_events: inbox.events().to_vec(),
             sensor,
             sensor_arrivals: None,

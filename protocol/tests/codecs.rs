@@ -12,6 +12,7 @@ use scanhil_protocol::message::{
     AngleReading, CoilCommand, Distance, Fault, FaultKind, I24_MAX, Message, NodeId, NodeState,
     Status, U18_MAX, U24_MAX,
 };
+use scanhil_protocol::slcan::bus_status::{BusError, BusState, StateReport, StatusFlags};
 use scanhil_protocol::slcan::{self, SlcanDecoder, SlcanMessage};
 
 fn arb_id() -> impl Strategy<Value = CanId> {
@@ -146,6 +147,21 @@ proptest! {
     }
 
     #[test]
+    fn slcan_stamped_frames_round_trip(
+        frames in prop::collection::vec((arb_frame(false), 0u16..60_000), 0..20),
+    ) {
+        let text: String = frames
+            .iter()
+            .map(|(frame, ms)| slcan::encode_stamped_frame(frame, *ms))
+            .collect();
+        let expected: Vec<_> = frames
+            .into_iter()
+            .map(|(frame, timestamp_ms)| Ok(SlcanMessage::StampedFrame { frame, timestamp_ms }))
+            .collect();
+        prop_assert_eq!(SlcanDecoder::new().push(text.as_bytes()), expected);
+    }
+
+    #[test]
     fn slcan_resyncs_after_a_dropped_or_flipped_byte(
         frames in prop::collection::vec(arb_frame(false), 1..12),
         at in any::<prop::sample::Index>(),
@@ -177,19 +193,35 @@ proptest! {
     }
 
     #[test]
-    fn slcan_commands_and_replies_round_trip(text in "[ -~]{0,12}", code in 0u8..=8) {
+    fn slcan_commands_and_replies_round_trip(
+        text in "[ -~]{0,12}",
+        code in 0u8..=9,
+        counters in (0u16..=999, 0u16..=999),
+        errors in prop::collection::vec(prop::sample::select(BusError::ALL.to_vec()), 1..=8),
+    ) {
         let text = text.trim().to_owned();
+        let states = [BusState::ErrorActive, BusState::ErrorWarning, BusState::ErrorPassive, BusState::BusOff];
         let messages = vec![
             SlcanMessage::Open,
             SlcanMessage::ListenOnly,
             SlcanMessage::Close,
-            SlcanMessage::Bitrate(slcan::SlcanBitrate::from_code(code).unwrap()),
+            SlcanMessage::Bitrate(code),
             SlcanMessage::DataBitrate(code),
             SlcanMessage::VersionRequest,
             SlcanMessage::SerialRequest,
             SlcanMessage::Version(format!("1{text}")),
             SlcanMessage::Serial(format!("A{text}")),
             SlcanMessage::TransmitAck { extended: code % 2 == 0 },
+            SlcanMessage::StatusRequest,
+            SlcanMessage::StatusFlags(StatusFlags(code.wrapping_mul(29))),
+            SlcanMessage::Timestamps(code % 2 == 1),
+            SlcanMessage::BusState(StateReport {
+                state: states[usize::from(code) % 4],
+                rx_errors: counters.0,
+                tx_errors: counters.1,
+            }),
+            SlcanMessage::BusErrors(errors),
+            SlcanMessage::Text(format!("x {text}")),
             SlcanMessage::Ack,
             SlcanMessage::Nack,
         ];

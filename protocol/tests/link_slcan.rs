@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use scanhil_protocol::can::{CanFrame, CanId};
 use scanhil_protocol::candump;
-use scanhil_protocol::link::slcan::DEVICE_VERSION;
+use scanhil_protocol::link::slcan::{DEVICE_VERSION, REPLY_TIMEOUT, REPLY_WINDOW};
 use scanhil_protocol::link::{
     CanCapture, CanLink, CaptureClock, LinkError, LinkUri, PtyPair, RecvError, Role, SerialLine,
     VirtualClock, Watchdog,
@@ -104,8 +104,9 @@ async fn host_and_device_exchange_frames_both_ways_in_order() {
 
 #[tokio::test]
 async fn the_host_sends_c_s_o_on_open() {
-    let (_host, _raw, seen) = host_and_raw_adapter().await;
+    let (host, _raw, seen) = host_and_raw_adapter().await;
     assert_eq!(seen, "C\rS8\rO\r");
+    assert_eq!(host.slcan_bitrate(), Some(1_000_000));
 }
 
 #[tokio::test]
@@ -187,7 +188,7 @@ async fn bitrate_commands_close_and_reopen() {
     let refused = host.send(&std_frame(0x100, &[1])).await.unwrap_err();
     assert!(refused.to_string().contains("closed"), "{refused}");
 
-    while_serving(&mut device, host.open_channel(125_000))
+    while_serving(&mut device, host.open_channel(Some(125_000)))
         .await
         .unwrap();
     assert!(device.channel_open());
@@ -195,8 +196,9 @@ async fn bitrate_commands_close_and_reopen() {
     device.send(&std_frame(0x110, &[2])).await.unwrap();
     assert_eq!(host.recv().await.unwrap(), std_frame(0x110, &[2]));
 
-    let unsupported = host.open_channel(123_456).await.unwrap_err();
+    let unsupported = host.open_channel(Some(123_456)).await.unwrap_err();
     assert!(unsupported.to_string().contains("123456"), "{unsupported}");
+    assert!(unsupported.to_string().contains("S0..S9"), "{unsupported}");
 }
 
 #[tokio::test]
@@ -226,16 +228,56 @@ async fn an_adapter_refusing_the_bitrate_fails_the_open_naming_the_command() {
     assert!(error.to_string().contains("`S5`"), "{error}");
 }
 
+/// A CANable 2.x answers no command: the host waits briefly after each, sends no `Sn`
+/// without a bit rate (the adapter keeps its own), and the link works.
 #[tokio::test]
-async fn a_silent_adapter_fails_the_open_after_the_reply_timeout() {
+async fn a_silent_adapter_is_opened_after_brief_waits_keeping_its_own_bit_rate() {
     let pair = PtyPair::open().unwrap();
     let path = pair.slave_path().to_owned();
-    let _raw = SerialLine::open(&path, 115_200, "raw").unwrap();
+    let mut raw = SerialLine::open(&path, 115_200, "raw").unwrap();
     let started = Instant::now();
-    let error = CanLink::open_pty(pair, None, Role::Host).await.unwrap_err();
+    let mut host = CanLink::open_pty(pair, None, Role::Host).await.unwrap();
+    let took = started.elapsed();
+    assert!(took >= 2 * REPLY_WINDOW, "{took:?}");
+    assert!(host.channel_open());
+    assert_eq!(host.slcan_bitrate(), None, "no bit rate was set");
+    let stats = host.stats().slcan;
+    assert_eq!(stats.unanswered_commands, 2, "{stats:?}");
+    let mut seen = [0; 16];
+    let n = raw.read(&mut seen).await.unwrap();
+    assert_eq!(&seen[..n], b"C\rO\r");
+    raw.write_all(b"t1230\r").await.unwrap();
+    assert_eq!(host.recv().await.unwrap(), std_frame(0x123, &[]));
+    host.send(&std_frame(0x100, &[1])).await.unwrap();
+    let n = raw.read(&mut seen).await.unwrap();
+    assert_eq!(&seen[..n], b"t100101\r");
+}
+
+/// An adapter that answered before and then falls silent is broken: its silence is an error
+/// naming the command.
+#[tokio::test]
+async fn an_answering_adapter_falling_silent_fails_the_open_naming_the_command() {
+    let pair = PtyPair::open().unwrap();
+    let path = pair.slave_path().to_owned();
+    let mut raw = SerialLine::open(&path, 115_200, "raw").unwrap();
+    let host = CanLink::open_pty(pair, Some(500_000), Role::Host);
+    let adapter = async {
+        let mut seen = Vec::new();
+        while !seen.ends_with(b"S6\r") {
+            let mut buf = [0; 64];
+            let n = raw.read(&mut buf).await.unwrap();
+            seen.extend_from_slice(&buf[..n]);
+            if seen == b"C\r" {
+                raw.write_all(b"\r").await.unwrap();
+            }
+        }
+    };
+    let started = Instant::now();
+    let (host, ()) = tokio::join!(host, adapter);
+    let error = host.unwrap_err();
     assert!(matches!(error, LinkError::NoReply { .. }), "{error}");
-    assert!(error.to_string().contains("`C`"), "{error}");
-    assert!(started.elapsed() >= Duration::from_secs(1));
+    assert!(error.to_string().contains("`S6`"), "{error}");
+    assert!(started.elapsed() >= REPLY_TIMEOUT);
 }
 
 #[tokio::test]
@@ -337,7 +379,7 @@ async fn opening_a_missing_or_non_serial_path_names_it_and_the_os_error() {
         .await
         .unwrap_err()
         .to_string();
-    assert!(text.contains("300000") && text.contains("S0..S8"), "{text}");
+    assert!(text.contains("300000") && text.contains("S0..S9"), "{text}");
 }
 
 #[tokio::test]

@@ -15,7 +15,7 @@ const READ_WAIT: Duration = Duration::from_secs(2);
 /// real adapter). The raw side answers the host's `C`, `Sn`, `O` with CR.
 async fn raw_adapter_and_host() -> (SerialLine, CanLink) {
     let pair = PtyPair::open().unwrap();
-    let uri: LinkUri = format!("slcan:{}", pair.slave_path().display())
+    let uri: LinkUri = format!("slcan:{}@1M", pair.slave_path().display())
         .parse()
         .unwrap();
     let mut raw = SerialLine::from_pty(pair, "raw").unwrap();

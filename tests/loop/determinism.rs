@@ -20,9 +20,16 @@ fn the_same_seed_gives_bit_identical_recordings_and_reports() {
         })
         .collect();
     // The report is the same but for the wall-clock figures, which are there: the run time
-    // and what each part of the scene costs per period (measured before the run).
+    // and what each part of the scene costs per period (measured before the run); and the
+    // mirror link's name, the pty each run was given.
     let [first, second] = [0, 1].map(|i| {
         let mut report = report(runs[i].path());
+        let link = report["links"]["mirror_link"]["link"].take();
+        assert!(
+            link.as_str()
+                .is_some_and(|uri| uri.starts_with("slcan:/dev/")),
+            "{link}"
+        );
         let run_time_s = report["run_time_s"].take();
         assert!(run_time_s.as_f64().is_some_and(|t| t > 0.0), "{run_time_s}");
         let costs = &mut report["emulator"]["summary"]["parts"];

@@ -9,6 +9,9 @@ mod deaf_node;
 
 // The host's SLCAN `C` ends the emulator's run, in lockstep and in real time.
 mod slcan_close;
+// SLCAN adapters as their firmware behaves (silent, CANable, Lawicel with and without
+// timestamps): conformance passes through each, a scan reports the adapter's stamps.
+mod slcan_adapters;
 // The emulator's watchdog: a silent controller gets zero coil currents and a LinkTimeout fault.
 mod emulator_watchdog;
 // Peers that stop reading: zero coils and a reason, never a blocked write.
@@ -19,6 +22,8 @@ mod scan_result;
 mod designed_controller;
 // identify --fit against a mirror that is not the paper's: parameters, refit, the twin scene.
 mod fitted_twin;
+// The bench-like mirror: identify sees its parts; the paper's PID scans the stud as predicted.
+mod bench_scene;
 // Lockstep determinism: the same seed twice gives bit-identical recordings and reports.
 mod determinism;
 // The sensor's samples on CAN or on the ILD stream: the same scan, the last period included.

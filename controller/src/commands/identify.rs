@@ -9,6 +9,7 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use nalgebra::Complex;
+use scanhil_controller::closed_loop_figures::closed_loop_figures;
 use scanhil_controller::fit::models::{ModelParams, SampledModel};
 use scanhil_controller::fit::{AxisFit, CrossTalkFit, Measured, fit_axis, fit_cross_talk, twin};
 use scanhil_controller::identify::{
@@ -222,6 +223,21 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         .fit
         .then(|| fit_all(&plans, &measured, period_s, reading_step))
         .transpose()?;
+    // Closed loop: the loop's figures from the measured T beside the model's on the same grid
+    // (the first excited axis').
+    let loop_figures = (args.mode == Mode::ClosedLoop)
+        .then(|| measured.first())
+        .flatten()
+        .map(|points| {
+            let measured: Vec<(f64, Complex<f64>)> =
+                points.iter().map(|p| (p.f_hz, p.response())).collect();
+            let modelled: Vec<(f64, Complex<f64>)> =
+                points.iter().map(|p| (p.f_hz, model(p.f_hz))).collect();
+            json!({
+                "measured": closed_loop_figures(&measured),
+                "model": closed_loop_figures(&modelled),
+            })
+        });
     let mut json = json!({
         "plant": args.from.as_ref().map_or_else(
             || args.fsm.clone().unwrap_or_else(|| format!("{:?}", args.plant).to_lowercase()),
@@ -237,6 +253,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "model": if args.mode == Mode::OpenLoop { "z^-1 ZOH(eq. 4)" } else { "nominal T = CP/(1+CP)" },
         "axes": axes,
         "points": axes.first().map(|a| a["points"].clone()),
+        "loop": loop_figures,
         "coils_at_end": coils_at_end,
     });
     if let Some((fits, cross_talk)) = &fit {

@@ -5,7 +5,7 @@
 use std::time::Duration;
 
 use scanhil_protocol::can::CanFrame;
-use scanhil_protocol::link::{CanLink, LinkError, VirtualClock};
+use scanhil_protocol::link::{ArrivalSource, CanLink, LinkError, VirtualClock};
 use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
 pub use super::host_inbox::{HostInbox, MirrorLinkCounters, NodeEvent};
@@ -277,6 +277,17 @@ impl MirrorLink {
         &mut self.port
     }
 
+    /// When the frame received last was on the bus, as the kernel (SocketCAN) or the adapter
+    /// (SLCAN with timestamps) stamped it; without a stamp, now (the loop takes a frame as
+    /// soon as it is read, and frames read in one chunk share their read time).
+    #[must_use]
+    pub fn last_arrival(&self) -> tokio::time::Instant {
+        match self.port.last_arrival() {
+            Some(arrival) if arrival.source != ArrivalSource::Read => arrival.on_bus_at,
+            _ => tokio::time::Instant::now(),
+        }
+    }
+
     /// The node events so far (see [`NodeEvent`]: faults and changes of state).
     #[must_use]
     pub fn events(&self) -> &[NodeEvent] {
@@ -509,12 +520,14 @@ impl MirrorLink {
             .map(|period| (period, angles)))
     }
 
-    /// Files a received frame at loop time `t_s` (see [`HostInbox::classify`]).
+    /// Files a received frame at loop time `t_s` (see [`HostInbox::classify`]), with its
+    /// arrival on the bus as the link knows it.
     fn classify(
         &mut self,
         frame: &CanFrame,
         t_s: f64,
     ) -> Result<Option<(u16, SensingPair)>, LoopError> {
-        self.inbox.classify(frame, t_s, tokio::time::Instant::now())
+        let arrived = self.last_arrival();
+        self.inbox.classify(frame, t_s, arrived)
     }
 }

@@ -380,6 +380,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
         // then drains. A failed close (the node is gone) leaves nothing open; a node that
         // stopped reading cannot take the `C`, so it is given up after a bounded wait.
         let _ = tokio::time::timeout(mirror_link::STOP_SEND_ALLOWANCE, links.mirror.close()).await;
+        let mirror_link = Some(links.mirror.can_link_mut().report());
         // The recording's last lines: a write that fails here is listed with its file among
         // the failed outputs below (the recording file keeps why), like one that failed
         // mid-run, and every other output is still written.
@@ -405,6 +406,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             can_distances,
             can_arrivals,
             mirror_counters,
+            mirror_link,
             node_events,
             sensor_arrivals: links.sensor.take_arrival_bound(),
             sensor: links.sensor.take_samples(),
@@ -602,6 +604,11 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         (None, NodeLink::Uri(uri)) => CanLink::open(&uri.parse()?, Role::Host).await?,
         (None, NodeLink::Pty) => unreachable!("a pty link has its pair"),
     };
+    // An adapter given by path: say what it was found to be and what was set on it (the bit
+    // rate kept when the URI names none).
+    if matches!(plan.fsm, NodeLink::Uri(_)) && fsm.is_slcan() {
+        eprintln!("scanhil: {}", fsm.open_summary());
+    }
     let clock = (timing.mode == TimingMode::Lockstep).then(VirtualClock::default);
     // A recording that cannot be created is listed as a failed output; the scan runs without
     // it.

@@ -63,6 +63,9 @@ pub struct RunData {
     pub can_arrivals: Option<ArrivalBound>,
     /// The mirror link's counters.
     pub mirror_counters: MirrorLinkCounters,
+    /// The mirror's CAN link itself: transport, adapter, what crossed it (`None`: no link, the
+    /// in-process loop).
+    pub mirror_link: Option<scanhil_protocol::link::LinkReport>,
     /// The mirror node's faults and changes of state ([`NodeEvent`]).
     pub node_events: Vec<NodeEvent>,
     /// The ILD stream's samples and counters.
@@ -251,6 +254,7 @@ pub fn write(
         "imaging": imaging,
         "links": {
             "mirror": run.mirror_counters,
+            "mirror_link": run.mirror_link,
             "sensor": sensor_counters,
             "node_events": run.node_events,
         },

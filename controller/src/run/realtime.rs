@@ -3,7 +3,9 @@
 //! command for the next period, CoilCommand(j + 1), which must arrive before that period
 //! starts. Measured here: the interval between readings (the master's period as seen after the
 //! link) and the answer latency (reading in to command out), as min / median / p99 / max, and
-//! overruns (answers slower than one period) and readings that never came.
+//! overruns (answers slower than one period) and readings that never came. A reading's arrival
+//! is when it was on the bus as the link knows it: the kernel's receive timestamp on SocketCAN,
+//! an SLCAN adapter's stamp when it sends them, else when the loop takes it.
 //!
 //! Before the loop this thread gets the scenario's real-time settings (CPU, `SCHED_FIFO`,
 //! locked memory) and measures the machine's wake-up latency with them ([`HostScheduling`]).
@@ -94,7 +96,8 @@ pub async fn run(
                 break;
             }
         };
-        let arrival = Instant::now();
+        // On the bus as the kernel or the adapter stamped it, else now.
+        let arrival = mirror.last_arrival().into_std();
         let epoch = tokio::time::Instant::from_std(arrival)
             .checked_sub(Duration::from_secs_f64((j + 1) as f64 * period_s));
         if let Some(candidate) = epoch {

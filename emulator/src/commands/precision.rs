@@ -9,7 +9,7 @@ use anyhow::Context;
 use super::print_or_broken_pipe;
 use serde::Serialize;
 
-use scanhil_emulator::drive_model::DriveModel;
+use scanhil_emulator::drive_model::{DriveModel, DriveParts};
 use scanhil_emulator::integrator::Method;
 use scanhil_emulator::precision::{ALPHA_DRIVE_HZ, BETA_DRIVE_HZ, StudyRow, StudySetup, run_study};
 use scanhil_emulator::scene::{Part, Scene};
@@ -77,11 +77,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         scene.has(Part::Axes),
         "scene {name} has no `axes` part: there are no dynamics to integrate"
     );
-    let model = DriveModel::new(
-        Some(&scene.mirror),
-        scene.has(Part::Amplifier).then_some(&scene.amplifier),
-        scene.has(Part::CrossTalk).then_some(&scene.cross_talk),
-    );
+    let model = DriveModel::build(&DriveParts::of_scene(&scene));
     let substeps = std::iter::successors(Some(1u32), |n| n.checked_mul(2))
         .take_while(|n| *n <= args.max_substeps)
         .collect();
@@ -94,9 +90,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     };
     let report = Report {
         plant: name,
-        active_parts: [Part::Axes, Part::CrossTalk, Part::Amplifier]
+        active_parts: scene
+            .active_parts()
             .into_iter()
-            .filter(|p| scene.has(*p))
+            .filter(|p| p.is_linear_drive())
             .map(Part::name)
             .collect(),
         period_s: setup.period_s,

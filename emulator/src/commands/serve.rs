@@ -6,6 +6,7 @@ use std::process::ExitCode;
 use anyhow::Context;
 use scanhil_protocol::fault_injection::SensorFaults;
 use scanhil_protocol::ild::command::LineEnding;
+use scanhil_protocol::link::slcan::device::EmulatedAdapter;
 
 use scanhil_emulator::serve::misbehaviour::Misbehaviour;
 use scanhil_emulator::serve::{DEFAULT_HEARTBEAT_HZ, DEFAULT_PROBE_S, ServeConfig, TimingMode};
@@ -21,6 +22,13 @@ pub struct Args {
     /// pair and print its path for an outside client).
     #[arg(long)]
     fsm: Option<String>,
+    /// On an SLCAN link, the adapter the device end behaves as: `scanhil` (CR/BEL answers, no
+    /// transmit acks), `canable` (CANable 1.x/2.x firmware: answers nothing but `V`, free
+    /// text), `silent` (answers nothing at all), `lawicel` (CR/BEL answers, `z`/`Z` acks) or
+    /// `lawicel-timestamps` (the same with `Z1`: every frame carries its millisecond
+    /// timestamp).
+    #[arg(long, default_value = "scanhil")]
+    slcan_adapter: EmulatedAdapter,
     /// The sensor node's link: `ild:PATH[@BAUD]` (the ILD 2300 stream), `ild:pty[@BAUD]` (a pty
     /// pair standing for a line at that baud, 691200 by default), or `fsm` (Distance frames on
     /// the mirror's CAN link).
@@ -105,6 +113,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     let config = ServeConfig {
         scene: args.scene,
         fsm: args.fsm,
+        slcan_adapter: args.slcan_adapter,
         sensor: args.sensor,
         ild_line_ending: match args.ild_line_end {
             IldLineEnd::Any => LineEnding::CrOrLf,

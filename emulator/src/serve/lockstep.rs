@@ -185,7 +185,7 @@ pub(super) async fn end_of_run(
     links: &mut ServeLinks,
 ) -> anyhow::Result<LoopReport> {
     links.fsm.send(ready).await?;
-    if links.fsm.slcan_bitrate().is_some() {
+    if links.fsm.is_slcan() {
         linger(links).await?;
     }
     Ok(LoopReport {

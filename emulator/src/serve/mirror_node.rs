@@ -215,6 +215,8 @@ impl MirrorNode {
                 PlantEvent::PowerFault { mean_w } => {
                     (FaultKind::PowerLimit, saturate_i32(mean_w * 1e3))
                 }
+                // A real driver reports no rail saturation: the host sees it in the angles.
+                PlantEvent::VoltageLimited { .. } => continue,
             };
             if !faults.iter().any(|(kind, _)| *kind == fault.0) {
                 faults.push(fault);

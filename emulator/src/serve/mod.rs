@@ -33,6 +33,7 @@ use std::time::Duration;
 
 use anyhow::{Context, bail};
 use scanhil_protocol::link::role::Role;
+use scanhil_protocol::link::slcan::device::EmulatedAdapter;
 use scanhil_protocol::link::{CanLink, LinkError, LinkUri, PtyPair};
 use scanhil_protocol::loop_limits;
 use scanhil_protocol::scheduling::{self, RealtimeOptions};
@@ -69,6 +70,8 @@ pub struct ServeConfig {
     pub scene: PathBuf,
     /// The mirror node's link URI (`slcan:pty` creates a pty pair).
     pub fsm: Option<String>,
+    /// On an SLCAN link: the adapter the device end plays.
+    pub slcan_adapter: EmulatedAdapter,
     /// The sensor node's link URI (`ild:pty[@BAUD]` creates a pty pair; `fsm` = the mirror's
     /// link).
     pub sensor: Option<String>,
@@ -284,8 +287,11 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
         let Some(fsm_uri) = config.fsm.as_deref() else {
             bail!("--fsm is required: the mirror node clocks the sensor in both timing modes");
         };
-        let fsm = open_fsm(fsm_uri).await?;
+        let fsm = open_fsm(fsm_uri, config.slcan_adapter).await?;
         ready["fsm"] = fsm.name().into();
+        if fsm.is_slcan() {
+            ready["slcan_adapter"] = config.slcan_adapter.name().into();
+        }
         let (sensor, sensor_name) =
             SensorPort::open(config.sensor.as_deref(), &scene, config.ild_line_ending)?;
         // Lockstep loses no sensor cycle (the host gives time); real time streams as a real
@@ -365,15 +371,16 @@ pub struct LoopReport {
     pub error: Option<String>,
 }
 
-/// Opens the mirror node's link; on SLCAN the host's `C` ends the run
-/// ([`RunEnd::HostClosedChannel`]).
-async fn open_fsm(uri: &str) -> anyhow::Result<CanLink> {
+/// Opens the mirror node's link; on SLCAN the device end plays `adapter`, and the host's `C`
+/// ends the run ([`RunEnd::HostClosedChannel`]).
+async fn open_fsm(uri: &str, adapter: EmulatedAdapter) -> anyhow::Result<CanLink> {
     let mut link = if uri == "slcan:pty" {
         CanLink::open_pty(PtyPair::open()?, None, Role::Device).await?
     } else {
         let parsed: LinkUri = uri.parse()?;
         CanLink::open(&parsed, Role::Device).await?
     };
+    link.play_slcan_adapter(adapter);
     link.end_run_on_close();
     Ok(link)
 }
@@ -385,6 +392,7 @@ fn link_summary(link: &CanLink) -> serde_json::Value {
         "frames_received": stats.frames_received,
         "slcan_malformed_lines": stats.slcan.malformed_lines,
         "slcan_refused_frames": stats.slcan.refused_frames,
+        "slcan_dropped_while_closed": stats.slcan.dropped_while_closed,
         "bus_error_frames": stats.bus_error_frames,
     })
 }

@@ -47,7 +47,7 @@ pub async fn end_on_link_error(
     let reason = scanhil_protocol::error_text::chain_text(&*error);
     let fault = node.on_link_failure();
     let frames = last_frames(node, fault)?;
-    let lingers = links.fsm.slcan_bitrate().is_some();
+    let lingers = links.fsm.is_slcan();
     let wound_down = wind_down(links, &frames, lingers).await;
     Ok(LoopReport {
         outcome: ended_by.outcome(),

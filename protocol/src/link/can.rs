@@ -4,29 +4,60 @@
 
 use std::time::Duration;
 
+use super::arrival::Arrival;
 use super::capture::CanCapture;
 use super::error::{LinkError, LinkResult};
 use super::line::SerialLine;
 use super::pty::PtyPair;
 use super::role::Role;
+use super::slcan::device::EmulatedAdapter;
 use super::slcan::{SlcanCounters, SlcanPort};
 use super::socketcan::SocketCanPort;
-use super::uri::{LinkUri, SLCAN_DEFAULT_BITRATE, SLCAN_SERIAL_BAUD};
+use super::uri::{LinkUri, SLCAN_SERIAL_BAUD};
 use super::watchdog::{LinkTimeout, Watchdog};
 use crate::can::CanFrame;
-use crate::slcan::SlcanBitrate;
+use crate::slcan::family::AdapterFamily;
 
 /// Traffic and trouble on a CAN link so far.
-#[derive(Debug, Clone, Default, PartialEq, Eq)]
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
 pub struct LinkStats {
     /// Frames sent.
     pub frames_sent: u64,
     /// Frames received.
     pub frames_received: u64,
-    /// SLCAN only: malformed lines, refused and dropped frames.
+    /// SLCAN only: malformed lines, refused and dropped frames, what the adapter said.
     pub slcan: SlcanCounters,
-    /// SocketCAN only: error frames from the kernel (bus-off included).
+    /// Error reports from the bus: SocketCAN's error frames from the kernel, an SLCAN
+    /// adapter's `e` lines (a bus-off included either way).
     pub bus_error_frames: u64,
+}
+
+/// What a CAN link is and what crossed it, for a run's report.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct LinkReport {
+    /// The link's URI.
+    pub link: String,
+    /// `slcan` or `socketcan`.
+    pub transport: &'static str,
+    /// The bus's bit rate the bus-load check used (the URI's), bit/s.
+    pub bus_bitrate: Option<u32>,
+    /// SLCAN: the adapter and what the link set on it.
+    pub slcan: Option<SlcanReport>,
+    /// Traffic and trouble.
+    pub stats: LinkStats,
+}
+
+/// An SLCAN adapter as the link found and set it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct SlcanReport {
+    /// The family whose `Sn` table the link used.
+    pub family: AdapterFamily,
+    /// The bit rate the link set with `Sn`, bit/s (`None`: the adapter kept its own setting,
+    /// which the link cannot read).
+    pub bitrate_set: Option<u32>,
+    /// Whether the adapter answers commands with CR/BEL (`false`: it stayed silent, as a
+    /// CANable does; `None`: no command was waited for).
+    pub adapter_answers: Option<bool>,
 }
 
 /// Why a watched receive ended without a frame.
@@ -54,11 +85,13 @@ pub struct CanLink {
     transport: Transport,
     capture: Option<CanCapture>,
     stats: LinkStats,
+    last_arrival: Option<Arrival>,
 }
 
 impl CanLink {
-    /// Opens the link `uri` names, as `role`. An SLCAN host opens the adapter (`C`, `Sn`,
-    /// `O`) before this returns.
+    /// Opens the link `uri` names, as `role`. An SLCAN host opens the adapter (`C`, `Sn` when
+    /// the URI names a bit rate, `O`) before this returns; an SLCAN device end plays the
+    /// default adapter until told otherwise ([`CanLink::play_slcan_adapter`]).
     ///
     /// # Errors
     /// [`LinkError::Unsupported`] for an `ild:` URI; otherwise the transport's open errors
@@ -69,11 +102,13 @@ impl CanLink {
             LinkUri::SocketCan { iface, .. } => {
                 Transport::SocketCan(SocketCanPort::open(iface, &name)?)
             }
-            LinkUri::Slcan { path, bitrate } => {
+            LinkUri::Slcan {
+                path,
+                bitrate,
+                family,
+            } => {
                 let line = SerialLine::open(path, SLCAN_SERIAL_BAUD, &name)?;
-                Transport::Slcan(Box::new(
-                    SlcanPort::start(line, role, slcan_bitrate(*bitrate)).await?,
-                ))
+                Transport::Slcan(Box::new(start_slcan(line, role, *family, *bitrate).await?))
             }
             LinkUri::Ild { .. } => {
                 return Err(LinkError::Unsupported {
@@ -85,22 +120,25 @@ impl CanLink {
         Ok(Self::with_transport(name, uri.bus_bitrate(), transport))
     }
 
-    /// Runs SLCAN as `role` on the master end of `pair` (the peer opens the slave path).
-    /// `bitrate` is the CAN bit rate the bus-load check uses and the host sets (`None`: 1 Mbit/s
-    /// set, no bus-load check). The link is named `slcan:<slave path>[@bitrate]`.
+    /// Runs SLCAN as `role` on the master end of `pair` (the peer opens the slave path),
+    /// with the default adapter family. `bitrate` is the CAN bit rate the bus-load check uses
+    /// and the host sets (`None`: no `Sn` sent, the adapter keeps its own; no bus-load
+    /// check). The link is named `slcan:<slave path>[@bitrate]`.
     ///
     /// # Errors
-    /// [`LinkError::Uri`] for a bit rate SLCAN cannot set; the handshake's errors (host).
+    /// [`LinkError::Uri`] for a bit rate the family cannot set; the handshake's errors (host).
     pub async fn open_pty(pair: PtyPair, bitrate: Option<u32>, role: Role) -> LinkResult<CanLink> {
+        let family = AdapterFamily::default();
         let uri = LinkUri::Slcan {
             path: pair.slave_path().to_owned(),
             bitrate,
+            family,
         };
         let name = uri.to_string();
         // Re-parse so a bad bit rate gets the same message as on the command line.
         name.parse::<LinkUri>()?;
         let line = SerialLine::from_pty(pair, &name)?;
-        let port = SlcanPort::start(line, role, slcan_bitrate(bitrate)).await?;
+        let port = start_slcan(line, role, family, bitrate).await?;
         Ok(Self::with_transport(
             name,
             bitrate,
@@ -115,6 +153,7 @@ impl CanLink {
             transport,
             capture: None,
             stats: LinkStats::default(),
+            last_arrival: None,
         }
     }
 
@@ -140,10 +179,79 @@ impl CanLink {
     pub fn stats(&self) -> LinkStats {
         let mut stats = self.stats.clone();
         match &self.transport {
-            Transport::Slcan(port) => stats.slcan = port.counters().clone(),
+            Transport::Slcan(port) => {
+                stats.slcan = port.counters().clone();
+                stats.bus_error_frames = stats.slcan.bus.error_lines;
+            }
             Transport::SocketCan(port) => stats.bus_error_frames = port.error_frames(),
         }
         stats
+    }
+
+    /// What the link is and what crossed it so far, for a report.
+    #[must_use]
+    pub fn report(&self) -> LinkReport {
+        let (transport, slcan) = match &self.transport {
+            Transport::SocketCan(_) => ("socketcan", None),
+            Transport::Slcan(port) => (
+                "slcan",
+                Some(SlcanReport {
+                    family: port.family(),
+                    bitrate_set: port.bitrate(),
+                    adapter_answers: port.adapter_answers(),
+                }),
+            ),
+        };
+        LinkReport {
+            link: self.name.clone(),
+            transport,
+            bus_bitrate: self.bus_bitrate,
+            slcan,
+            stats: self.stats(),
+        }
+    }
+
+    /// One line on how the link was opened, for the operator: the adapter's family, the bit
+    /// rate set or kept, whether it answers commands.
+    #[must_use]
+    pub fn open_summary(&self) -> String {
+        match &self.transport {
+            Transport::SocketCan(_) => format!("{}: SocketCAN interface", self.name),
+            Transport::Slcan(port) => {
+                let bitrate = match port.bitrate() {
+                    Some(bits) => format!(
+                        "bit rate {bits} set with S{}",
+                        port.family().code_for(bits).unwrap_or(0)
+                    ),
+                    None => {
+                        "no @BITRATE: the adapter keeps its own bit rate (no Sn sent)".to_owned()
+                    }
+                };
+                let answers = match port.adapter_answers() {
+                    Some(true) => "it answers commands",
+                    Some(false) => "it answered no command (as a CANable does)",
+                    None => "no command waited for",
+                };
+                format!(
+                    "{}: {} SLCAN adapter, {bitrate}; {answers}",
+                    self.name,
+                    port.family()
+                )
+            }
+        }
+    }
+
+    /// When the frame the last receive returned arrived (`None` before the first): its read
+    /// time, and when it was on the bus as the kernel or the adapter stamped it.
+    #[must_use]
+    pub fn last_arrival(&self) -> Option<Arrival> {
+        self.last_arrival
+    }
+
+    /// Whether the link runs SLCAN (over a serial line or pty).
+    #[must_use]
+    pub fn is_slcan(&self) -> bool {
+        matches!(self.transport, Transport::Slcan(_))
     }
 
     /// Whether the channel is open: always for SocketCAN; SLCAN: the host has sent `O` (and
@@ -156,12 +264,22 @@ impl CanLink {
         }
     }
 
-    /// SLCAN: the bit rate set on the channel (device: the one the host last set with `Sn`).
+    /// SLCAN: the bit rate set on the channel (host: the one this link set with `Sn`, `None`
+    /// when it kept the adapter's own; device: the one the host last set). SocketCAN: `None`.
     #[must_use]
     pub fn slcan_bitrate(&self) -> Option<u32> {
         match &self.transport {
             Transport::SocketCan(_) => None,
-            Transport::Slcan(port) => Some(port.bitrate().bits_per_s()),
+            Transport::Slcan(port) => port.bitrate(),
+        }
+    }
+
+    /// Device end of SLCAN: plays `adapter` (its answers, acks, timestamps, bit-rate table)
+    /// from now on; call it before the host sends anything. SocketCAN, or a host end: no
+    /// effect.
+    pub fn play_slcan_adapter(&mut self, adapter: EmulatedAdapter) {
+        if let Transport::Slcan(port) = &mut self.transport {
+            port.play_adapter(adapter);
         }
     }
 
@@ -246,11 +364,11 @@ impl CanLink {
         if must_wait {
             self.flush_capture()?;
         }
-        let frame = match &mut self.transport {
+        let received = match &mut self.transport {
             Transport::SocketCan(port) => port.recv().await?,
             Transport::Slcan(port) => port.recv().await?,
         };
-        self.received(frame)
+        self.received(received)
     }
 
     /// Waits up to `timeout` for the next frame; `None` when none came.
@@ -269,11 +387,11 @@ impl CanLink {
     /// # Errors
     /// As [`CanLink::recv`].
     pub fn try_recv(&mut self) -> LinkResult<Option<CanFrame>> {
-        let frame = match &mut self.transport {
+        let received = match &mut self.transport {
             Transport::SocketCan(port) => port.try_recv()?,
             Transport::Slcan(port) => port.try_recv()?,
         };
-        frame.map(|f| self.received(f)).transpose()
+        received.map(|r| self.received(r)).transpose()
     }
 
     /// Waits for the next frame for as long as `watchdog` allows, and feeds it on arrival.
@@ -345,39 +463,34 @@ impl CanLink {
         }
     }
 
-    /// Host: (re)opens the SLCAN channel at `bitrate` (`C`, `Sn`, `O`); SocketCAN: nothing.
+    /// Host: (re)opens the SLCAN channel (`C`, `Sn` when `bitrate` is given, `O`); SocketCAN:
+    /// nothing.
     ///
     /// # Errors
-    /// [`LinkError::Unsupported`] for a bit rate SLCAN cannot set; the adapter's refusal or
-    /// silence.
-    pub async fn open_channel(&mut self, bitrate: u32) -> LinkResult<()> {
+    /// [`LinkError::Unsupported`] for a bit rate the adapter's family cannot set; the
+    /// adapter's refusal, or the silence of an adapter that answers.
+    pub async fn open_channel(&mut self, bitrate: Option<u32>) -> LinkResult<()> {
         match &mut self.transport {
             Transport::SocketCan(_) => Ok(()),
-            Transport::Slcan(port) => {
-                let rate = SlcanBitrate::from_bits_per_s(bitrate).ok_or_else(|| {
-                    LinkError::Unsupported {
-                        link: self.name.clone(),
-                        detail: format!("bit rate {bitrate}: SLCAN sets only S0..S8"),
-                    }
-                })?;
-                port.open_channel(rate).await
-            }
+            Transport::Slcan(port) => port.open_channel(bitrate).await,
         }
     }
 
-    /// Host: the SLCAN adapter's version (`V`); `None` on SocketCAN.
+    /// Host: the SLCAN adapter's version (`V`: a Lawicel `Vhhss`'s text, a CANable's free
+    /// text); `None` on SocketCAN or when the adapter answered none.
     ///
     /// # Errors
-    /// The adapter's refusal or silence.
+    /// An answer that is no version; line errors.
     pub async fn adapter_version(&mut self) -> LinkResult<Option<String>> {
         match &mut self.transport {
             Transport::SocketCan(_) => Ok(None),
-            Transport::Slcan(port) => port.version().await.map(Some),
+            Transport::Slcan(port) => port.version().await,
         }
     }
 
-    fn received(&mut self, frame: CanFrame) -> LinkResult<CanFrame> {
+    fn received(&mut self, (frame, arrival): (CanFrame, Arrival)) -> LinkResult<CanFrame> {
         self.stats.frames_received += 1;
+        self.last_arrival = Some(arrival);
         self.record(&frame)?;
         Ok(frame)
     }
@@ -393,10 +506,16 @@ impl CanLink {
     }
 }
 
-/// The `Sn` setting for a URI's bit rate (validated when the URI was parsed); 1 Mbit/s when
-/// none was given.
-fn slcan_bitrate(bitrate: Option<u32>) -> SlcanBitrate {
-    bitrate
-        .and_then(SlcanBitrate::from_bits_per_s)
-        .unwrap_or(SLCAN_DEFAULT_BITRATE)
+/// SLCAN on `line` as `role`: a host opens the adapter of `family` (at `bitrate` when given),
+/// a device end waits for its host.
+async fn start_slcan(
+    line: SerialLine,
+    role: Role,
+    family: AdapterFamily,
+    bitrate: Option<u32>,
+) -> LinkResult<SlcanPort> {
+    match role {
+        Role::Host => SlcanPort::host(line, family, bitrate).await,
+        Role::Device => Ok(SlcanPort::device(line, EmulatedAdapter::default())),
+    }
 }

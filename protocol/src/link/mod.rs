@@ -1,9 +1,12 @@
 //! The real transports between the controller, the mirror node and the sensor node, named by
-//! URIs on the command line: `socketcan:IFACE`, `slcan:PATH[@BITRATE]`, `ild:PATH[@BAUD]`.
+//! URIs on the command line: `socketcan:IFACE[@BITRATE]`, `slcan:PATH[@BITRATE][?family=F]`,
+//! `ild:PATH[@BAUD]`.
 //!
 //! # Layout
 //! - [`uri`]: link URIs from the command line.
 //! - [`role`]: which end of a link this program is (host or device).
+//! - [`arrival`]: when a received frame arrived (read time, and the kernel's or the adapter's
+//!   receive time).
 //! - [`error`]: [`LinkError`], naming the link and the OS error.
 //! - [`pty`]: pty pairs, a serial line between two programs on one machine.
 //! - [`line`](mod@line): an async byte line over a serial port or pty (what SLCAN and ILD run on).
@@ -14,6 +17,7 @@
 //! - [`capture`]: recording what crosses a link (candump `-L` lines, raw ILD bytes).
 //! - [`watchdog`]: declares a link timeout after N silent periods.
 
+pub mod arrival;
 pub mod can;
 pub mod capture;
 pub mod error;
@@ -26,7 +30,8 @@ pub mod socketcan;
 pub mod uri;
 pub mod watchdog;
 
-pub use can::{CanLink, LinkStats, RecvError};
+pub use arrival::{Arrival, ArrivalSource};
+pub use can::{CanLink, LinkReport, LinkStats, RecvError, SlcanReport};
 pub use capture::{ByteCapture, CAPTURE_FLUSH_BYTES, CanCapture, CaptureClock, VirtualClock};
 pub use error::{LinkError, LinkResult};
 pub use ild::{IldCycle, IldCycleAssembler, IldLink, IldRequest};

@@ -16,6 +16,7 @@ use socketcan::{
     CanAnyFrame, CanErrorFrame, EmbeddedFrame, ErrorCause, Id, SocketOptions, tokio::CanFdSocket,
 };
 
+use super::arrival::Arrival;
 use super::error::{LinkError, LinkResult};
 use crate::can::{CanFrame, CanId, FrameFormat};
 
@@ -101,7 +102,7 @@ impl SocketCanPort {
     /// # Errors
     /// [`LinkError::Io`] when the socket fails (interface gone: "Network is down");
     /// [`LinkError::BusOff`] when the controller went bus-off.
-    pub async fn recv(&mut self) -> LinkResult<CanFrame> {
+    pub async fn recv(&mut self) -> LinkResult<(CanFrame, Arrival)> {
         loop {
             let frame = self
                 .socket
@@ -109,7 +110,7 @@ impl SocketCanPort {
                 .await
                 .map_err(|source| self.io("read", source))?;
             if let Some(frame) = self.accept(&frame)? {
-                return Ok(frame);
+                return Ok((frame, Arrival::read(tokio::time::Instant::now())));
             }
         }
     }
@@ -133,12 +134,12 @@ impl SocketCanPort {
     ///
     /// # Errors
     /// As [`SocketCanPort::recv`].
-    pub fn try_recv(&mut self) -> LinkResult<Option<CanFrame>> {
+    pub fn try_recv(&mut self) -> LinkResult<Option<(CanFrame, Arrival)>> {
         loop {
             match self.socket.try_read_frame() {
                 Ok(frame) => {
                     if let Some(frame) = self.accept(&frame)? {
-                        return Ok(Some(frame));
+                        return Ok(Some((frame, Arrival::read(tokio::time::Instant::now()))));
                     }
                 }
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Ok(None),

@@ -1,29 +1,25 @@
 //! Link URIs as given on the command line: `socketcan:IFACE[@BITRATE]`,
-//! `slcan:PATH[@BITRATE]` and `ild:PATH[@BAUD]`.
+//! `slcan:PATH[@BITRATE][?family=FAMILY]` and `ild:PATH[@BAUD]`.
 //!
 //! Bit rates and baud rates accept a plain integer or a `k`/`M` suffix (`500k`, `1M`).
 //! `@BITRATE` on a SocketCAN interface is not configured by the link (use `ip link`); it tells
-//! the bus-load check what the bus runs at. On `slcan:` it selects the adapter's `Sn` command
-//! and is what the bus-load check uses (a pty has no bit rate of its own).
+//! the bus-load check what the bus runs at, and is checked against the rate the interface
+//! reports. On `slcan:` it selects the adapter's `Sn` command from its family's table
+//! (`?family=canable` (the default), `lawicel` or `linux`: [`AdapterFamily`]) and is what the
+//! bus-load check uses; without it no `Sn` is sent and the adapter keeps its own setting.
 
 use std::fmt;
 use std::path::PathBuf;
 use std::str::FromStr;
 
 use crate::ild::stream::FACTORY_BAUD as ILD_DEFAULT_BAUD;
-use crate::slcan::SlcanBitrate;
+use crate::slcan::family::AdapterFamily;
 
-/// The CAN bit rate an SLCAN adapter is set to when the URI names none (python-can's default).
-pub const SLCAN_DEFAULT_BITRATE: SlcanBitrate = SlcanBitrate::Mbit1;
 /// The serial baud rate used on an SLCAN line. USB adapters (CANable, ttyACM) and ptys ignore
 /// it; a UART adapter needing another rate is reconfigured with `stty` before use.
 pub const SLCAN_SERIAL_BAUD: u32 = 115_200;
 /// Longest Linux network interface name (IFNAMSIZ - 1).
 const IFACE_MAX_LEN: usize = 15;
-
-/// The bit rates an SLCAN adapter can be set to (`S0`..`S8`), for messages.
-const SLCAN_BITRATES_TEXT: &str =
-    "10000, 20000, 50000, 100000, 125000, 250000, 500000, 800000, 1000000";
 
 /// A parsed link URI.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -39,9 +35,11 @@ pub enum LinkUri {
     Slcan {
         /// The serial device path.
         path: PathBuf,
-        /// The CAN bit rate given in the URI (`None`: adapter set to
-        /// [`SLCAN_DEFAULT_BITRATE`], no bus-load check).
+        /// The CAN bit rate given in the URI (`None`: no `Sn` sent, the adapter keeps its
+        /// own setting; no bus-load check).
         bitrate: Option<u32>,
+        /// The adapter's family: which `Sn` digit sets which bit rate.
+        family: AdapterFamily,
     },
     /// The ILD 2300's RS422 byte stream and ASCII commands over a serial port or pty.
     Ild {
@@ -76,9 +74,18 @@ impl fmt::Display for LinkUri {
                 write!(f, "socketcan:{iface}")?;
                 bitrate.map_or(Ok(()), |b| write!(f, "@{b}"))
             }
-            LinkUri::Slcan { path, bitrate } => {
+            LinkUri::Slcan {
+                path,
+                bitrate,
+                family,
+            } => {
                 write!(f, "slcan:{}", path.display())?;
-                bitrate.map_or(Ok(()), |b| write!(f, "@{b}"))
+                bitrate.map_or(Ok(()), |b| write!(f, "@{b}"))?;
+                if *family == AdapterFamily::default() {
+                    Ok(())
+                } else {
+                    write!(f, "?family={family}")
+                }
             }
             LinkUri::Ild { path, baud } => write!(f, "ild:{}@{baud}", path.display()),
         }
@@ -113,6 +120,18 @@ impl FromStr for LinkUri {
             ));
         };
         let body_at = scheme.len() + 1;
+        let (rest, options) = match rest.split_once('?') {
+            Some((body, options)) => (body, Some((options, body_at + body.len() + 1))),
+            None => (rest, None),
+        };
+        if let Some((_, at)) = options
+            && scheme != "slcan"
+        {
+            return Err(fail(
+                at - 1,
+                format!("`{scheme}:` takes no options (`?...` is for `slcan:` only)"),
+            ));
+        }
         let (target, rate) = match rest.rsplit_once('@') {
             Some((target, rate)) => (target, Some((rate, body_at + target.len() + 1))),
             None => (rest, None),
@@ -149,20 +168,19 @@ impl FromStr for LinkUri {
                 })
             }
             "slcan" => {
+                let family = match options {
+                    Some((options, at)) => parse_family(options).map_err(|r| fail(at, r))?,
+                    None => AdapterFamily::default(),
+                };
                 if let Some(bitrate) = rate
-                    && SlcanBitrate::from_bits_per_s(bitrate).is_none()
+                    && family.code_for(bitrate).is_none()
                 {
-                    return Err(fail(
-                        rate_at,
-                        format!(
-                            "CAN bit rate {bitrate} is not one an SLCAN adapter can set \
-                             (S0..S8: {SLCAN_BITRATES_TEXT} bit/s)"
-                        ),
-                    ));
+                    return Err(fail(rate_at, refusal(family, bitrate)));
                 }
                 Ok(LinkUri::Slcan {
                     path: PathBuf::from(target),
                     bitrate: rate,
+                    family,
                 })
             }
             "ild" => Ok(LinkUri::Ild {
@@ -175,6 +193,35 @@ impl FromStr for LinkUri {
             )),
         }
     }
+}
+
+/// Parses the options of an `slcan:` URI: `family=NAME`.
+fn parse_family(options: &str) -> Result<AdapterFamily, String> {
+    match options.split_once('=') {
+        Some(("family", name)) => name
+            .parse()
+            .map_err(|e: crate::slcan::family::UnknownFamily| e.to_string()),
+        _ => Err(format!(
+            "unknown option `{options}` (the one option is `family=canable|lawicel|linux`)"
+        )),
+    }
+}
+
+/// Why `family` cannot set `bitrate`: its table, and the families that can.
+fn refusal(family: AdapterFamily, bitrate: u32) -> String {
+    let others: Vec<String> = AdapterFamily::families_setting(bitrate)
+        .iter()
+        .map(|f| format!("`?family={f}`"))
+        .collect();
+    let hint = if others.is_empty() {
+        String::new()
+    } else {
+        format!("; {} adapters set it", others.join(" or "))
+    };
+    format!(
+        "CAN bit rate {bitrate} is not one a {family} SLCAN adapter can set ({}){hint}",
+        family.table_text()
+    )
 }
 
 /// Parses `1000000`, `500k`, `1M` into bits (or bauds) per second.
@@ -213,7 +260,28 @@ mod tests {
             "slcan:/dev/ttyACM0@500k".parse::<LinkUri>().unwrap(),
             LinkUri::Slcan {
                 path: "/dev/ttyACM0".into(),
-                bitrate: Some(500_000)
+                bitrate: Some(500_000),
+                family: AdapterFamily::Canable,
+            }
+        );
+        assert_eq!(
+            "slcan:/dev/ttyUSB0@800k?family=lawicel"
+                .parse::<LinkUri>()
+                .unwrap(),
+            LinkUri::Slcan {
+                path: "/dev/ttyUSB0".into(),
+                bitrate: Some(800_000),
+                family: AdapterFamily::Lawicel,
+            }
+        );
+        assert_eq!(
+            "slcan:/dev/ttyACM0?family=linux"
+                .parse::<LinkUri>()
+                .unwrap(),
+            LinkUri::Slcan {
+                path: "/dev/ttyACM0".into(),
+                bitrate: None,
+                family: AdapterFamily::Linux,
             }
         );
         assert_eq!(
@@ -237,6 +305,8 @@ mod tests {
         for text in [
             "socketcan:can0@1000000",
             "slcan:/dev/pts/3@125000",
+            "slcan:/dev/pts/3@800000?family=linux",
+            "slcan:/dev/pts/3?family=lawicel",
             "ild:/dev/x@921600",
         ] {
             assert_eq!(text.parse::<LinkUri>().unwrap().to_string(), text);
@@ -248,7 +318,37 @@ mod tests {
         let e = "slcan:/dev/ttyACM0@123456".parse::<LinkUri>().unwrap_err();
         assert_eq!(e.offset, 19);
         assert!(e.to_string().contains("123456"), "{e}");
-        assert!(e.to_string().contains("S0..S8"), "{e}");
+        assert!(e.to_string().contains("canable SLCAN adapter"), "{e}");
+        assert!(e.to_string().contains("S0..S9"), "{e}");
+        assert!(!e.to_string().contains("family="), "no family sets it: {e}");
+
+        // S7 is 750k on a CANable: 800k is refused there, naming who sets it.
+        let e = "slcan:/dev/ttyACM0@800k".parse::<LinkUri>().unwrap_err();
+        assert_eq!(
+            e.reason,
+            "CAN bit rate 800000 is not one a canable SLCAN adapter can set (S0..S9: 10000, \
+             20000, 50000, 100000, 125000, 250000, 500000, 750000, 1000000, 83300 bit/s); \
+             `?family=lawicel` or `?family=linux` adapters set it"
+        );
+        let e = "slcan:/dev/ttyUSB0@750k?family=linux"
+            .parse::<LinkUri>()
+            .unwrap_err();
+        assert!(e.reason.contains("`?family=canable`"), "{e}");
+
+        let e = "slcan:/dev/x?family=peak".parse::<LinkUri>().unwrap_err();
+        assert_eq!(e.offset, 13);
+        assert!(
+            e.reason.contains("unknown SLCAN adapter family `peak`"),
+            "{e}"
+        );
+        let e = "slcan:/dev/x@1M?speed=fast".parse::<LinkUri>().unwrap_err();
+        assert_eq!(e.offset, 16);
+        assert!(e.reason.contains("unknown option `speed=fast`"), "{e}");
+        let e = "socketcan:can0?family=linux"
+            .parse::<LinkUri>()
+            .unwrap_err();
+        assert_eq!(e.offset, 14);
+        assert!(e.reason.contains("takes no options"), "{e}");
 
         let e = "can:vcan0".parse::<LinkUri>().unwrap_err();
         assert_eq!(e.offset, 0);
