@@ -110,8 +110,11 @@ def main():
     candump = "\n".join(golden[:12]) + "\n"
     candump_extra = ("(1600000000.123456789) can1 1ABCDEF0#00\n(0.000000) vcan0 123#R5\n"
                      "(1.500000) vcan0 140##30001020304050607\n")
+    # A technician's own capture: candump -L -x -e -8 -d (direction, error frames, raw DLC, drops).
+    technician = (FIXTURES / "recordings" / "candump-technician.log").read_text()
     write("candump", "golden", candump)
     write("candump", "kinds", candump_extra)
+    write("candump", "technician", technician)
 
     stream = ild_cycles([[32760, 7], [32770, 8], [262076, 9], [600, 10]])
     write("ild_stream", "cycles", stream)
@@ -138,6 +141,7 @@ def main():
     write("ild_replies", "refusal", b"\x01MEASRATE 7\r\nW05 Later\r\nE04 Wrong parameter\r\n->")
 
     write("decode", "candump", b"\x00" + candump.encode())
+    write("decode", "technician", b"\x00" + technician.encode())
     write("decode", "slcan", b"\x01" + slcan["frames"].encode() + b"t0214E8030000\r")
     write("decode", "ild", b"\x02" + stream)
 

@@ -5,6 +5,12 @@
 //!   "signals": {<DBC signal>: <physical value>, ...}}`; `t` is null for SLCAN (no clock).
 //! - ILD: `{"offset": <byte>, "raw": <int>, "index": <position in the output cycle or null>}`
 //!   plus, for a cycle's first value, `"mm": <distance>` or `"error": <name>`.
+//! - What a technician's `candump -L -x -e -8 -d` adds: a frame's `"direction"` (`"R"`
+//!   received, `"T"` sent by the logging host) and `"len8_dlc"` (its raw DLC, 9..15, when it
+//!   has one); an error frame as `{"t": <seconds>, "error_frame": [<class>, ...], "id": <raw
+//!   id, CAN_ERR_FLAG included>, "data": "<hex>"}`, counted by the [`Report`]; a `DROPCOUNT`
+//!   notice said and its frames counted. Neither is malformed: a capture of a troubled bus
+//!   decodes cleanly.
 //!
 //! Malformed input (bad lines, frames of a known id with the wrong shape, lost ILD sync) is
 //! counted and said by a [`Report`] with its line or byte offset, and decoding goes on. Frames
@@ -17,7 +23,7 @@ use std::io::{BufRead, BufWriter, Read, Write};
 
 use anyhow::Context;
 use scanhil_protocol::can::CanFrame;
-use scanhil_protocol::candump;
+use scanhil_protocol::candump::{self, Direction, LogRecord};
 use scanhil_protocol::ild::{IldDecoder, IldValue, MeasuringRange};
 use scanhil_protocol::message::{MessageError, decode_signals};
 use scanhil_protocol::slcan::{BEL, CR, SlcanDecoder, SlcanMessage};
@@ -69,6 +75,8 @@ pub const MAX_CANDUMP_LINE: usize = 1024;
 pub struct Report {
     source: String,
     malformed: u64,
+    error_frames: u64,
+    dropped_frames: u64,
     shown: u64,
     stderr: Box<dyn Write>,
 }
@@ -86,6 +94,8 @@ impl Report {
         Report {
             source,
             malformed: 0,
+            error_frames: 0,
+            dropped_frames: 0,
             shown: 0,
             stderr,
         }
@@ -124,8 +134,34 @@ impl Report {
         self.malformed
     }
 
-    /// The closing count, and everything buffered out.
+    /// candump error frames read so far.
+    #[must_use]
+    pub fn error_frame_count(&self) -> u64 {
+        self.error_frames
+    }
+
+    /// Frames the logging socket dropped, as candump's `DROPCOUNT` notices said so far.
+    #[must_use]
+    pub fn dropped_frame_count(&self) -> u64 {
+        self.dropped_frames
+    }
+
+    /// The closing counts, and everything buffered out.
     pub fn finish(&mut self) {
+        if self.error_frames > 0 {
+            let _ = writeln!(
+                self.stderr,
+                "scanhil decode: {}: {} error frame(s)",
+                self.source, self.error_frames
+            );
+        }
+        if self.dropped_frames > 0 {
+            let _ = writeln!(
+                self.stderr,
+                "scanhil decode: {}: {} frame(s) dropped by the logging socket",
+                self.source, self.dropped_frames
+            );
+        }
         if self.malformed > 0 {
             let _ = writeln!(
                 self.stderr,
@@ -164,6 +200,29 @@ struct FrameLine {
     id: u32,
     message: &'static str,
     signals: OrderedSignals,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    direction: Option<&'static str>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    len8_dlc: Option<u8>,
+}
+
+/// One candump error frame.
+#[derive(serde::Serialize)]
+struct ErrorFrameLine {
+    t: f64,
+    error_frame: Vec<String>,
+    id: u32,
+    data: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    direction: Option<&'static str>,
+}
+
+/// A `-x` direction as its letter in the JSON.
+fn direction_letter(direction: Option<Direction>) -> Option<&'static str> {
+    direction.map(|direction| match direction {
+        Direction::Received => "R",
+        Direction::Sent => "T",
+    })
 }
 
 /// The JSON line of a CAN frame, or `None` (after reporting) when it is not one of ours.
@@ -195,6 +254,8 @@ fn frame_json(
                 id: frame.id().as_raw(),
                 message: decoded.spec.name,
                 signals: OrderedSignals(signals),
+                direction: None,
+                len8_dlc: None,
             })
         }
         Err(MessageError::UnknownId(id)) => {
@@ -245,13 +306,33 @@ fn decode_candump(
         if text.trim().is_empty() {
             continue;
         }
-        match candump::parse_line(text) {
-            Ok(entry) => {
+        match candump::parse_record(text) {
+            Ok(LogRecord::Frame(entry)) => {
                 let at = format!("line {number}");
                 let t = Some(entry.timestamp.as_secs_f64());
-                if let Some(json) = frame_json(t, &entry.frame, &at, report) {
+                if let Some(mut json) = frame_json(t, &entry.frame, &at, report) {
+                    json.direction = direction_letter(entry.direction);
+                    json.len8_dlc = entry.len8_dlc;
                     write_line(out, &json)?;
                 }
+            }
+            Ok(LogRecord::Error(entry)) => {
+                report.error_frames += 1;
+                let line = ErrorFrameLine {
+                    t: entry.timestamp.as_secs_f64(),
+                    error_frame: entry.error.causes(),
+                    id: entry.error.raw_id(),
+                    data: scanhil_protocol::can::hex_upper(&entry.error.data),
+                    direction: direction_letter(entry.direction),
+                };
+                write_line(out, &line)?;
+            }
+            Ok(LogRecord::Dropped(drop)) => {
+                report.dropped_frames += u64::from(drop.dropped);
+                report.notice(format_args!(
+                    "line {number}: candump's socket dropped {} frame(s) on {} (total {})",
+                    drop.dropped, drop.interface, drop.total
+                ));
             }
             Err(err) => {
                 // Quote at most the start of what the parser quoted.

@@ -91,6 +91,8 @@ pub fn candump(data: &[u8]) {
         assert_eq!(again.timestamp, micros, "{line:?}");
         assert_eq!(again.interface, entry.interface, "{line:?}");
         assert_eq!(again.frame, entry.frame, "{line:?}");
+        assert_eq!(again.len8_dlc, entry.len8_dlc, "{line:?}");
+        assert_eq!(again.direction, entry.direction, "{line:?}");
     }
 }
 

@@ -79,6 +79,8 @@ fn codecs(c: &mut Criterion) {
                 },
                 interface: "vcan0".to_owned(),
                 frame,
+                len8_dlc: None,
+                direction: None,
             };
             format!("{entry}\n")
         })

@@ -88,6 +88,8 @@ fn run() -> Result<bool, String> {
                         timestamp: Timestamp::default(),
                         interface: "slcan0".to_owned(),
                         frame,
+                        len8_dlc: None,
+                        direction: None,
                     };
                     println!("RECV {entry}");
                     if received == expect {

@@ -125,6 +125,8 @@ fn main() -> ExitCode {
             },
             interface: "vcan0".to_owned(),
             frame,
+            len8_dlc: None,
+            direction: None,
         };
         text.push_str(&entry.to_string());
         text.push('\n');

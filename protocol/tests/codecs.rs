@@ -3,7 +3,7 @@
 
 use proptest::prelude::*;
 use scanhil_protocol::can::{CanFrame, CanId, FD_LENGTHS, FrameFormat};
-use scanhil_protocol::candump::{self, LogEntry, Timestamp};
+use scanhil_protocol::candump::{self, Direction, LogEntry, Timestamp};
 use scanhil_protocol::ild::command::{
     AddValue, AddValueSet, IldOutputInfo, IldReply, MeasuringRate, ReplyCode,
 };
@@ -262,8 +262,32 @@ proptest! {
             timestamp: Timestamp { secs, nanos: micros * 1000 },
             interface,
             frame,
+            len8_dlc: None,
+            direction: None,
         };
         prop_assert_eq!(&entry.to_string(), &line);
+        prop_assert_eq!(candump::parse_line(&line), Ok(entry));
+    }
+
+    #[test]
+    fn candump_direction_and_len8_dlc_round_trip(
+        frame in arb_frame(true),
+        raw_dlc in 9u8..=15,
+        direction in prop::option::of(prop::sample::select(vec![Direction::Received, Direction::Sent])),
+    ) {
+        // `_N` only on a classical frame of 8 bytes (data or remote), as can-utils writes it.
+        let len8_dlc = (!matches!(frame.format(), FrameFormat::Fd { .. }) && frame.dlc() == 8)
+            .then_some(raw_dlc);
+        let entry = LogEntry {
+            timestamp: Timestamp { secs: 1_764_671_234, nanos: 250_000 },
+            interface: "can0".to_owned(),
+            frame,
+            len8_dlc,
+            direction,
+        };
+        let line = entry.to_string();
+        prop_assert_eq!(line.ends_with(" R"), direction == Some(Direction::Received));
+        prop_assert_eq!(line.ends_with(" T"), direction == Some(Direction::Sent));
         prop_assert_eq!(candump::parse_line(&line), Ok(entry));
     }
 

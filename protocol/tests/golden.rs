@@ -119,6 +119,8 @@ fn can_messages() {
             },
             interface: "vcan0".to_owned(),
             frame,
+            len8_dlc: None,
+            direction: None,
         };
         let bits = FrameShape::of_frame(&frame).bits();
         let _ = writeln!(
