@@ -11,7 +11,10 @@
 //!   it (to first order in frequency).
 //! - `cross_talk`: the fitted couplings; the part is switched on when either stands out
 //!   ([`CrossTalkFit::stands_out`]).
-//! - A second mode is not written: the scene format has no such part yet (the fit reports it).
+//! - A second mode is reported, not written: the fit's mode adds to eq. 4 (modal
+//!   superposition) where the scene's `second_mode` part is in series with it, with an
+//!   anti-resonance; the one converts to the other exactly (numerator `s^2 + 2 zeta_z wz s +
+//!   wz^2` of the sum), which is not written yet.
 //!
 //! Everything else of a base scene (surface, optics, sensor, limits, noise, seed) is kept, so
 //! the twin scans what the bench scanned.
@@ -133,7 +136,8 @@ pub fn scene(
         }
         if fit.chosen == ModelKind::Eq4Mode || fit.chosen == ModelKind::Eq4ModeLag {
             notes.push(format!(
-                "{}: the fitted second mode is not written (no scene part for it)",
+                "{}: the fitted second mode is not written (the scene's `second_mode` part \
+                 is a series form it is not yet converted to)",
                 fit.axis.name()
             ));
         }
