@@ -20,6 +20,8 @@ mod peers;
 mod scan_result;
 // A dual-tone `scanhil design` made for the 1 Mbit/s bus's rate scans the Duplo stud.
 mod designed_controller;
+// identify --fit against a mirror that is not the paper's: parameters, refit, the twin scene.
+mod fitted_twin;
 // The bench-like mirror: identify sees its parts; the paper's PID scans the stud as predicted.
 mod bench_scene;
 // Lockstep determinism: the same seed twice gives bit-identical recordings and reports.
