@@ -27,7 +27,10 @@
 //! - [`settings`]: controller files, discretised and checked for stability on load.
 //! - [`scan_controller`]: the per-period controller the loop calls (rad in, coil A out).
 //! - [`link`]: the [`link::PlantLink`] trait and the in-process nominal plant.
-//! - [`identify`]: stepped-sine frequency response with coherence.
+//! - [`identify`]: stepped-sine and swept-sine frequency response with coherence.
+//! - [`identify_recording`]: an identification's recording analysed again, without the device.
+//! - [`fit`]: eq. 4 (and richer models, chosen by BIC) fitted to a measured response, with
+//!   uncertainties, and the cross-talk.
 //! - [`accuracy`]: tone placement and tracking error per discretisation method.
 //!
 //! The loop and imaging:
@@ -45,7 +48,9 @@ pub mod decode;
 pub mod design;
 pub mod discretise;
 pub mod dual_tone;
+pub mod fit;
 pub mod identify;
+pub mod identify_recording;
 pub mod imaging;
 pub mod link;
 pub mod loop_analysis;

@@ -164,6 +164,131 @@ fn identify_writes_json_with_coherence() {
     assert!(dir.path().join("fr.png").exists());
 }
 
+/// The `value` of the estimate `name` of `axis` in an identify result.
+fn estimate(result: &serde_json::Value, axis: &str, name: &str) -> f64 {
+    result["fit"]["axes"]
+        .as_array()
+        .and_then(|axes| axes.iter().find(|a| a["axis"] == axis))
+        .and_then(|fit| fit["estimates"].as_array())
+        .and_then(|e| e.iter().find(|e| e["name"] == name))
+        .and_then(|e| e["value"].as_f64())
+        .unwrap_or_else(|| panic!("no estimate {name} of {axis} in {result:#}"))
+}
+
+#[test]
+fn identify_fit_recovers_eq_4_and_writes_a_scene_and_rig_design_reads() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = |name: &str| dir.path().join(name).display().to_string();
+    let rig = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/rigs/paper-mirror-only.json");
+    let out = scanhil(&[
+        "identify",
+        "--plant",
+        "nominal",
+        "--fit",
+        "--rate-hz",
+        "10000",
+        "--points",
+        "10",
+        "--settle-s",
+        "4",
+        "--cycles",
+        "1",
+        "--blocks",
+        "2",
+        "--out",
+        &path("fit.json"),
+        "--write-scene",
+        &path("twin.json"),
+        "--rig",
+        rig.to_str().unwrap(),
+        "--write-rig",
+        &path("rig.json"),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // The summary on stdout when the JSON goes to a file.
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.starts_with("fit alpha: Eq4: dc_gain 1.14"),
+        "{stdout}"
+    );
+    let result: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(path("fit.json")).unwrap()).unwrap();
+    for axis in ["alpha", "beta"] {
+        for (name, want) in [
+            ("dc_gain", 11.4),
+            ("natural_freq_rad_s", 140.68),
+            ("damping_ratio", 3.21e-2),
+            ("delay_s", 1e-4),
+        ] {
+            let got = estimate(&result, axis, name);
+            assert!((got / want - 1.0).abs() < 1e-3, "{axis} {name}: {got}");
+        }
+    }
+    // The in-process plant is uncoupled: no cross-talk part.
+    let scene: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(path("twin.json")).unwrap()).unwrap();
+    assert_eq!(scene["parts"], serde_json::json!(["axes"]));
+    assert_eq!(scene["control_rate_hz"], 10000.0);
+    assert_eq!(scene["mirror"]["beta"]["delay_s"], 1e-4);
+    let rig: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(path("rig.json")).unwrap()).unwrap();
+    assert_eq!(rig["control_rate_hz"], 10000.0);
+    assert_eq!(rig["name"], "paper-mirror-only");
+    // `scanhil design` takes the written scene as its plant and the written rig.
+    let out = scanhil(&[
+        "design",
+        "--rig",
+        &path("rig.json"),
+        "--plant",
+        &path("twin.json"),
+        "--kind",
+        "pid",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let design: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(design["design"]["rate_hz"], 10000.0, "{design:#}");
+    let source = design["design"]["plant_source"].as_str().unwrap();
+    assert!(
+        source.ends_with("twin.json: the scene's mirror"),
+        "{source}"
+    );
+}
+
+#[test]
+fn identify_refuses_what_it_cannot_do_before_it_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("nothing-here");
+    for (args, expected) in [
+        (
+            vec!["--record", missing.to_str().unwrap()],
+            "--record keeps the frames of a link: give --fsm",
+        ),
+        (
+            vec!["--fit", "--mode", "closed-loop"],
+            "--fit fits the open-loop plant: --mode open-loop",
+        ),
+        (vec!["--from", missing.to_str().unwrap()], "identify.json"),
+        (vec!["--fit", "--write-rig", "r.json"], "--rig"),
+    ] {
+        let mut all = vec!["identify"];
+        all.extend(&args);
+        let out = scanhil(&all);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(!out.status.success(), "{args:?} ran");
+        assert!(stderr.contains(expected), "{args:?}: {stderr}");
+    }
+    assert!(!missing.exists(), "nothing is created by a refused run");
+}
+
 #[test]
 fn conformance_refuses_rates_and_allowances_that_cannot_run_instead_of_panicking() {
     for (flag, value) in [

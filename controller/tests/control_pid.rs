@@ -75,15 +75,23 @@ fn tustin_pid_matches_the_continuous_one_well_below_nyquist() {
 #[test]
 fn output_is_limited_and_the_integrator_does_not_wind_up() {
     let limit = 1.0;
-    let mut pid = Pid::new(&table_ii(PidForm::Parallel), &Method::Tustin, T, limit);
-    // A large error for 0.5 s saturates the output ...
-    for _ in 0..10_000 {
-        assert!(pid.step(5.0) <= limit);
+    // At either limit (issue 20: switching the anti-windup off at the negative limit alone
+    // once passed every controller test).
+    for sign in [1.0, -1.0] {
+        let mut pid = Pid::new(&table_ii(PidForm::Parallel), &Method::Tustin, T, limit);
+        // A large error for 0.5 s saturates the output ...
+        for _ in 0..10_000 {
+            let u = pid.step(sign * 5.0);
+            assert!(u.abs() <= limit, "{u}");
+        }
+        // ... and when the error reverses, the output leaves the limit at once, because the
+        // integrator held still while saturated.
+        let after = sign * pid.step(-sign * 0.5);
+        assert!(
+            after < limit,
+            "still saturated at {sign} x the limit: {after}"
+        );
     }
-    // ... and when the error reverses, the output leaves the limit at once, because the
-    // integrator held still while saturated.
-    let after = pid.step(-0.5);
-    assert!(after < limit, "still saturated: {after}");
     // Without the limit, the integral holds ki * 5 * 0.5 = 850 input units (less the
     // derivative kick kd wt 5.5 = 140 of the reversal).
     let mut unlimited = Pid::new(&table_ii(PidForm::Parallel), &Method::Tustin, T, 1e9);

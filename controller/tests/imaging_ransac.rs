@@ -64,6 +64,30 @@ fn recovers_a_tilted_plane_among_40_percent_outliers() {
 }
 
 #[test]
+fn keeps_the_candidate_with_the_most_inliers_not_the_first() {
+    // Two parallel planes 10 mm apart: 60 % of the points on the lower, 40 % on the upper,
+    // interleaved. A draw on the upper plane refines to the upper plane (its band holds none
+    // of the lower), so only keeping the best candidate finds the lower plane for every seed
+    // (issue 20: keeping the first candidate was caught by no test of this file).
+    let points: Vec<[f64; 3]> = (0..1000)
+        .map(|i| {
+            let (x, y) = ((i % 40) as f64 * 0.25, (i / 40) as f64 * 0.4);
+            [x, y, if i % 5 < 3 { -130.0 } else { -120.0 }]
+        })
+        .collect();
+    for seed in 0..20 {
+        let params = RansacParams {
+            seed,
+            ..RansacParams::default()
+        };
+        let fit = fit_plane(&points, &params).unwrap();
+        assert_eq!(fit.inliers, 600, "seed {seed}: {fit:?}");
+        let z = fit.plane.z_at_mm(1.0, 1.0).unwrap();
+        assert!((z + 130.0).abs() < 1e-9, "seed {seed}: z {z}");
+    }
+}
+
+#[test]
 fn refuses_what_it_cannot_fit() {
     let p = RansacParams::default();
     assert_eq!(

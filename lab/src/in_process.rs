@@ -29,6 +29,7 @@ use scanhil_controller::run::plan::{PlanSummary, ScanPlan};
 use scanhil_controller::run::scenario::{NodeLink, Scenario, TimingMode};
 use scanhil_controller::run::sensor_link::{IldSampleDecoder, SampleLayout};
 use scanhil_controller::run::sensor_setup::SensorSetupReport;
+use scanhil_controller::run::verdict::{PlantDeclares, Verdict};
 use scanhil_controller::run::{EmulatedDevices, ScanEnd};
 use scanhil_emulator::part_cost::{self, CostTiming};
 use scanhil_emulator::scene::Part;
@@ -62,6 +63,8 @@ pub struct InProcessOutcome {
     pub plan: PlanSummary,
     /// How the run ended (as the output writer says, when it ran).
     pub end: ScanEnd,
+    /// The run's verdict, once its output folder is written ([`Self::write`]).
+    pub verdict: Option<Verdict>,
     /// The frames each side sent and received, counted by the transport (apart from the
     /// fault injector's own ledger).
     pub wire: WireCounts,
@@ -85,9 +88,9 @@ pub struct WireCounts {
 
 impl InProcessOutcome {
     /// Writes the output folder of `scanhil scan` (report, point cloud, height map, plots)
-    /// into `out_dir`; returns how the run ended. The sensor samples and the angle record are
-    /// consumed (as `scanhil scan` does: the frame is never held as samples and points at
-    /// once); what else the run produced stays.
+    /// into `out_dir`; returns how the run ended and keeps its verdict. The sensor samples
+    /// and the angle record are consumed (as `scanhil scan` does: the frame is never held as
+    /// samples and points at once); what else the run produced stays.
     ///
     /// # Errors
     /// A file that cannot be written (all of them named, after the others were written).
@@ -105,6 +108,7 @@ impl InProcessOutcome {
             out_dir.display(),
             result.failed_outputs
         );
+        self.verdict = Some(result.verdict);
         Ok(result.end)
     }
 }
@@ -186,6 +190,7 @@ pub fn run_probed(
         sensor_measuring_rate_hz: scene
             .has(Part::Sensor)
             .then(|| scene.sensor.unwrap_or_default().measuring_rate_hz),
+        dynamics: scene.has(Part::Axes),
     }
     .check(scene_path, period_s, rig_sensor_hz)?;
     let measuring_rate_hz = rig_sensor_hz.unwrap_or_default();
@@ -334,6 +339,9 @@ pub fn run_probed(
             frame_faults,
             run_time_s: started.elapsed().as_secs_f64(),
             failed_recordings: OutputFailures::default(),
+            plant: PlantDeclares {
+                dynamics: Some(scene.has(Part::Axes)),
+            },
             sensor_setup: serves_sensor.then(|| SensorSetupReport::Skipped {
                 reason: "in process: the emulated sensor starts as the loop needs it; there is \
                          no ASCII line to configure it over"
@@ -344,6 +352,7 @@ pub fn run_probed(
         scenario: scenario.clone(),
         plan: plan_summary,
         end,
+        verdict: None,
         wire,
     };
     if let Some(dir) = out_dir {

@@ -8,6 +8,7 @@ mod util;
 use std::path::Path;
 
 use scanhil_controller::run::scenario::Scenario;
+use scanhil_controller::run::verdict::Status;
 use scanhil_lab::study::plan::{Study, variant_dir};
 use scanhil_lab::study::run::{VariantOutcome, run_variants};
 use scanhil_lab::study::table::{RESULT_DIR, collect};
@@ -59,7 +60,7 @@ fn a_study_runs_its_variants_on_threads_and_tabulates_them() {
     let alpha: Vec<f64> = rows
         .iter()
         .map(|row| {
-            assert_eq!(row.complete, Some(true), "{row:?}");
+            assert_eq!(row.verdict, Some(Status::Complete), "{row:?}");
             assert!(row.run_time_s.is_some_and(|t| t > 0.0), "{row:?}");
             row.tracking_rms_relative_alpha.expect("a tracking figure")
         })
@@ -79,7 +80,7 @@ fn a_study_runs_its_variants_on_threads_and_tabulates_them() {
     let csv = std::fs::read_to_string(out.join("study.csv")).expect("study.csv");
     assert_eq!(csv.lines().count(), 5, "{csv}");
     assert!(csv.starts_with(
-        "variant,controller.discretisation.method,scenario.controller,scenario.duration_s,complete,"
+        "variant,controller.discretisation.method,scenario.controller,scenario.duration_s,verdict,"
     ));
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("study.json")).expect("json"))
@@ -109,7 +110,7 @@ fn a_variant_run_by_scanhil_scan_gives_the_same_row_as_in_process() {
         "scanhil scan",
     );
     let there = collect(&study, &batch).expect("table").remove(0);
-    assert_eq!(here.complete, Some(true));
+    assert_eq!(here.verdict, Some(Status::Complete));
     // Both runs list the scene's parts, each with a measured cost (the costs differ: they
     // are wall times).
     let names = |row: &scanhil_lab::study::table::Row| {
@@ -151,8 +152,8 @@ fn a_variant_that_cannot_run_is_a_row_with_its_reason() {
     assert_eq!(outcomes[0], VariantOutcome::Ran);
     assert!(matches!(&outcomes[1], VariantOutcome::Failed(m) if m.contains("nonsense")));
     let rows = collect(&study, &out).expect("table");
-    assert_eq!(rows[0].complete, Some(true));
-    assert_eq!(rows[1].complete, None);
+    assert_eq!(rows[0].verdict, Some(Status::Complete));
+    assert_eq!(rows[1].verdict, None);
     let problem = rows[1].problem.as_deref().unwrap_or_default();
     assert!(problem.contains("nonsense"), "{problem}");
 }
@@ -232,5 +233,46 @@ fn unreadable_or_malformed_study_and_base_files_are_refused_naming_file_line_and
     assert!(
         error.contains(&format!("{}:3:3: ", scene.display())),
         "{error}"
+    );
+}
+
+#[test]
+fn a_study_under_a_relative_out_runs_every_variant_and_its_table_carries_each_verdict() {
+    // As the README runs it: `scanhil-study run STUDY --out out/study` from another folder.
+    // Each variant changes the scene, so each writes a scene of its own that its scenario
+    // names; the second's amplitudes are scaled to nothing by the power check.
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let study = dir.path().join("study.json");
+    let text = format!(
+        r#"{{ "name": "relative", "scenario": "{}", "list": [
+            {{ "scenario.duration_s": 0.02, "scene.seed": 1 }},
+            {{ "scenario.duration_s": 0.02, "scene.seed": 2,
+               "scenario.trajectory.alpha_amplitude_rad": 1e300,
+               "scenario.trajectory.beta_amplitude_rad": 1e300 }}
+        ] }}"#,
+        root()
+            .join("fixtures/scenarios/test-loop-small.json")
+            .display()
+    );
+    std::fs::write(&study, text).expect("writing the study");
+    let output = std::process::Command::new(env!("CARGO_BIN_EXE_scanhil-study"))
+        .current_dir(dir.path())
+        .args(["run", "study.json", "--out", "out/study", "--jobs", "1"])
+        .output()
+        .expect("running scanhil-study");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(4), "a failed verdict: {stderr}");
+    assert!(!stderr.contains("out/study/variants/0001/out"), "{stderr}");
+    let csv = std::fs::read_to_string(dir.path().join("out/study/study.csv")).expect("study.csv");
+    let rows: Vec<&str> = csv.lines().collect();
+    assert_eq!(rows.len(), 3, "{csv}");
+    assert!(rows[1].contains(",complete,"), "{csv}");
+    assert!(
+        rows[2].contains(",failed,") && rows[2].contains("does not move the mirror"),
+        "{csv}"
+    );
+    assert!(
+        stderr.contains("variant 2 failed: the reference does not move"),
+        "{stderr}"
     );
 }

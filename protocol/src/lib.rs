@@ -22,6 +22,8 @@
 //!   watchdog, probe, heartbeat).
 //! - [`validation`]: how every program says a value cannot run: the field or flag, the file,
 //!   the value and the allowed range.
+//! - [`whole_file`]: output files written under a temporary name and renamed once whole.
+//! - [`stdout`]: printing whose failure (`> /dev/full`) is an error, never a panic.
 //! - `link` (cargo feature `links`): the real transports: SocketCAN, SLCAN over a serial port or
 //!   pty, the ILD stream over a serial port or pty; link URIs, pty pairs, capture, watchdog.
 
@@ -41,4 +43,6 @@ pub mod plant_units;
 #[cfg(feature = "links")]
 pub mod scheduling;
 pub mod slcan;
+pub mod stdout;
 pub mod validation;
+pub mod whole_file;

@@ -5,7 +5,7 @@
 
 use std::path::Path;
 
-use crate::util::{assert_success, fixture, number, report, run_scanhil};
+use crate::util::{fixture, number, report, run_scanhil};
 
 /// test-loop-small with `trajectory` and `power` (absolute paths), written into `dir`.
 fn scenario_with(dir: &Path, trajectory: serde_json::Value, power: serde_json::Value) -> String {
@@ -129,8 +129,15 @@ fn a_trajectory_that_saturates_most_periods_is_warned_about_before_the_run() {
     );
     let out = dir.path().join("out");
     let output = run_scanhil(&["scan", &scenario, "--out", out.to_str().expect("UTF-8")]);
-    assert_success(&output, "a saturated scan runs as asked");
+    // It runs as asked, every period, and its verdict says the loop did not track (exit 4).
     let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(4), "{stderr}");
+    assert!(
+        stderr.contains(
+            "the scan completed but its result is not valid: the loop does not track on alpha"
+        ),
+        "{stderr}"
+    );
     let warning = stderr
         .lines()
         .find(|line| line.starts_with("warning: trajectory "))
@@ -140,6 +147,11 @@ fn a_trajectory_that_saturates_most_periods_is_warned_about_before_the_run() {
         "{warning}"
     );
     let report = report(&out);
+    assert_eq!(
+        report["outcome"]["verdict"], "failed",
+        "{}",
+        report["outcome"]
+    );
     let planned = number(&report, "/periods/planned_saturated_share");
     let done = number(&report, "/periods/saturated") / number(&report, "/periods/done");
     assert!(

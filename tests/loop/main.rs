@@ -20,6 +20,8 @@ mod peers;
 mod scan_result;
 // A dual-tone `scanhil design` made for the 1 Mbit/s bus's rate scans the Duplo stud.
 mod designed_controller;
+// identify --fit against a mirror that is not the paper's: parameters, refit, the twin scene.
+mod fitted_twin;
 // The bench-like mirror: identify sees its parts; the paper's PID scans the stud as predicted.
 mod bench_scene;
 // Lockstep determinism: the same seed twice gives bit-identical recordings and reports.
@@ -51,5 +53,7 @@ mod faults;
 mod realtime_options;
 // Bad values refused or warned about before a run; an OS error said once.
 mod bad_input;
+// Verdicts: runs that did nothing or did not track exit 4 with their reasons.
+mod verdicts;
 // Outputs that cannot be written (a full disk, a directory in the way): the others are.
 mod output_failures;

@@ -102,3 +102,37 @@ fn a_directory_in_the_way_of_one_output_does_not_stop_the_others() {
             .is_ok_and(|m| m.len() > 1000)
     );
 }
+
+#[test]
+fn a_stdout_that_cannot_be_written_is_an_error_once_the_outputs_are_written() {
+    // `scanhil scan > /dev/full` once panicked after writing everything (exit 101).
+    let out = tempfile::tempdir().expect("a temporary folder");
+    let full = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/full")
+        .expect("opening /dev/full");
+    let child = std::process::Command::new(crate::util::scanhil())
+        .args([
+            "scan",
+            &fixture("scenarios/test-loop-small.json"),
+            "--duration-s",
+            "0.01",
+            "--out",
+            out.path().to_str().expect("UTF-8 path"),
+        ])
+        .env("SCANHIL_EMULATOR", crate::util::emulator())
+        .stdout(full)
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("starting scanhil");
+    let output = crate::util::exits_within(child, crate::util::RUN_LIMIT, "scanhil > /dev/full");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    let enospc = std::io::Error::from_raw_os_error(28).to_string();
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains(&format!("scanhil: error: writing to stdout: {enospc}"))
+            && !stderr.contains("panicked"),
+        "{stderr}"
+    );
+    assert_eq!(report(out.path())["outcome"]["verdict"], "complete");
+}

@@ -107,9 +107,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "method_comparison": comparison,
     });
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&json)?);
+        scanhil_protocol::outln!("{}", serde_json::to_string_pretty(&json)?)?;
     } else {
-        print_text(&settings, &json, &report);
+        print_text(&settings, &json, &report)?;
     }
     if let Some(path) = &args.plot {
         let bode = nominal.bode();
@@ -152,89 +152,94 @@ fn print_text(
     settings: &ControllerSettings,
     json: &serde_json::Value,
     report: &scanhil_controller::loop_analysis::LoopReport,
-) {
+) -> std::io::Result<()> {
     let opt =
         |v: Option<f64>, unit: &str| v.map_or("none".to_string(), |x| format!("{x:.3} {unit}"));
-    println!(
+    scanhil_protocol::outln!(
         "controller: {} ({}, {} at {} Hz)",
         settings.name,
         settings.origin.display(),
         settings.discretisation.name(),
         settings.control_rate_hz
-    );
-    println!(
+    )?;
+    scanhil_protocol::outln!(
         "discrete sections (b0 b1 b2 / 1 a1 a2), gain {}:",
         json["discrete"]["gain"]
-    );
+    )?;
     for s in json["discrete"]["sections"]
         .as_array()
         .into_iter()
         .flatten()
     {
-        println!("  b = {}  a = {}", s["b"], s["a"]);
+        scanhil_protocol::outln!("  b = {}  a = {}", s["b"], s["a"])?;
         for kind in ["poles", "zeros"] {
             for p in s[kind].as_array().into_iter().flatten() {
-                println!(
+                scanhil_protocol::outln!(
                     "    {kind:5} {:+.9} {:+.9}j  |z| = {:.9}  {:.4} Hz",
                     p["re"].as_f64().unwrap_or(0.0),
                     p["im"].as_f64().unwrap_or(0.0),
                     p["abs"].as_f64().unwrap_or(0.0),
                     p["f_hz"].as_f64().unwrap_or(0.0)
-                );
+                )?;
             }
         }
     }
     for tone in json["tones"].as_array().into_iter().flatten() {
-        println!(
+        scanhil_protocol::outln!(
             "tone: continuous {:.6} Hz -> discrete {:.6} Hz ({:+.4} mHz), damping {:.3e} -> {:.3e}",
             tone["continuous_hz"].as_f64().unwrap_or(0.0),
             tone["discrete_hz"].as_f64().unwrap_or(0.0),
             tone["error_mhz"].as_f64().unwrap_or(0.0),
             tone["continuous_damping"].as_f64().unwrap_or(0.0),
             tone["discrete_damping"].as_f64().unwrap_or(0.0)
-        );
+        )?;
     }
-    println!(
+    scanhil_protocol::outln!(
         "nominal closed loop ({}):",
         if report.stable { "stable" } else { "UNSTABLE" }
-    );
-    println!("  crossover            {}", opt(report.crossover_hz, "Hz"));
+    )?;
+    scanhil_protocol::outln!("  crossover            {}", opt(report.crossover_hz, "Hz"))?;
     for c in &report.gain_crossovers {
-        println!(
+        scanhil_protocol::outln!(
             "    |L| = 1 at {:.3} Hz, phase margin {:.2} deg",
-            c.f_hz, c.phase_margin_deg
-        );
+            c.f_hz,
+            c.phase_margin_deg
+        )?;
     }
-    println!(
+    scanhil_protocol::outln!(
         "  phase margin (min)   {}",
         opt(report.phase_margin_deg, "deg")
-    );
-    println!(
+    )?;
+    scanhil_protocol::outln!(
         "  gain margin          {}",
         opt(report.gain_margin_db, "dB")
-    );
+    )?;
     for c in &report.phase_crossovers {
-        println!(
+        scanhil_protocol::outln!(
             "    arg L = 180 deg at {:.3} Hz, gain margin {:.2} dB",
-            c.f_hz, c.gain_margin_db
-        );
+            c.f_hz,
+            c.gain_margin_db
+        )?;
     }
-    println!(
+    scanhil_protocol::outln!(
         "  -3 dB bandwidth      {}",
         opt(report.bandwidth_3db_hz, "Hz")
-    );
-    println!(
+    )?;
+    scanhil_protocol::outln!(
         "  peak of T            {:.3} dB at {:.3} Hz",
-        report.peak_db, report.peak_hz
-    );
+        report.peak_db,
+        report.peak_hz
+    )?;
     for v in &report.at {
-        println!(
+        scanhil_protocol::outln!(
             "  T at {:>8.3} Hz      {:+.4} dB, {:+.4} deg",
-            v.f_hz, v.magnitude_db, v.phase_deg
-        );
+            v.f_hz,
+            v.magnitude_db,
+            v.phase_deg
+        )?;
     }
-    println!("  spectral radius      {:.9}", report.spectral_radius);
-    println!(
+    scanhil_protocol::outln!("  spectral radius      {:.9}", report.spectral_radius)?;
+    scanhil_protocol::outln!(
         "  closed-loop poles    {}",
         report
             .closed_loop_poles
@@ -242,12 +247,12 @@ fn print_text(
             .map(ToString::to_string)
             .collect::<Vec<_>>()
             .join(", ")
-    );
-    println!("verdict: {}", json["verdict"].as_str().unwrap_or(""));
+    )?;
+    scanhil_protocol::outln!("verdict: {}", json["verdict"].as_str().unwrap_or(""))?;
     if let Some(rows) = json["method_comparison"].as_array() {
-        println!(
+        scanhil_protocol::outln!(
             "method comparison (Lissajous 52/27 Hz, half range, nominal plant, error over the last second):"
-        );
+        )?;
         for row in rows {
             let track = &row["tracking"];
             let tones: Vec<String> = row["tones"]
@@ -257,21 +262,22 @@ fn print_text(
                 .map(|t| format!("{:+.3} mHz", t["error_mhz"].as_f64().unwrap_or(0.0)))
                 .collect();
             if row["accepted"].as_bool() == Some(true) {
-                println!(
+                scanhil_protocol::outln!(
                     "  {:32} tones {:28} rms error alpha {:9.3} urad, beta {:9.3} urad, {} saturated periods",
                     row["method"].as_str().unwrap_or(""),
                     tones.join(", "),
                     track["rms_alpha_urad"].as_f64().unwrap_or(0.0),
                     track["rms_beta_urad"].as_f64().unwrap_or(0.0),
                     track["saturated_periods"]
-                );
+                )?;
             } else {
-                println!(
+                scanhil_protocol::outln!(
                     "  {:32} tones {:28} REFUSED",
                     row["method"].as_str().unwrap_or(""),
                     tones.join(", ")
-                );
+                )?;
             }
         }
     }
+    Ok(())
 }

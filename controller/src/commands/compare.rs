@@ -43,7 +43,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         .map(|(dir, label)| ScanFolder::read(dir, label))
         .collect::<Result<Vec<_>, _>>()?;
     for file in draw_comparison(&scans, &args.out)? {
-        println!("wrote {}", file.display());
+        scanhil_protocol::outln!("wrote {}", file.display())?;
     }
     Ok(ExitCode::SUCCESS)
 }

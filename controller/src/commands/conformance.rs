@@ -128,9 +128,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         }
         anyhow::Ok(results)
     })?;
-    println!("{}", table(&results));
+    scanhil_protocol::outln!("{}", table(&results))?;
     if let Some(path) = &args.junit {
-        std::fs::write(path, junit_xml(&results))
+        scanhil_protocol::whole_file::write_file(path, junit_xml(&results))
             .with_context(|| format!("writing {}", path.display()))?;
     }
     // A run in which no check ran (all skipped, or none applied to these links) did nothing.

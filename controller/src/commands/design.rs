@@ -215,9 +215,9 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                     "reach": reach,
                     "written": args.out.as_ref().map(|p| p.display().to_string()),
                 });
-                println!("{}", serde_json::to_string_pretty(&json)?);
+                scanhil_protocol::outln!("{}", serde_json::to_string_pretty(&json)?)?;
             } else {
-                print_design(&header, &design, &reach, args.out.as_deref());
+                print_design(&header, &design, &reach, args.out.as_deref())?;
             }
             Ok(ExitCode::SUCCESS)
         }
@@ -228,10 +228,10 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
                     "refused": error.to_string(),
                     "reach": reach,
                 });
-                println!("{}", serde_json::to_string_pretty(&json)?);
+                scanhil_protocol::outln!("{}", serde_json::to_string_pretty(&json)?)?;
             } else {
-                print_header(&header);
-                print_reach(&reach, rate_hz);
+                print_header(&header)?;
+                print_reach(&reach, rate_hz)?;
             }
             eprintln!("scanhil: design {error}");
             Ok(ExitCode::FAILURE)
@@ -346,15 +346,15 @@ fn method(args: &Args, kind: Kind, drive_hz: &[f64]) -> Method {
     }
 }
 
-fn print_header(header: &serde_json::Value) {
+fn print_header(header: &serde_json::Value) -> std::io::Result<()> {
     let plant = &header["plant"];
-    println!(
+    scanhil_protocol::outln!(
         "design at {} Hz ({}), rig {}",
         header["rate_hz"],
         header["rate_source"].as_str().unwrap_or(""),
         header["rig"].as_str().unwrap_or("")
-    );
-    println!(
+    )?;
+    scanhil_protocol::outln!(
         "plant: {} axis {}: K {}, ws {} rad/s, zeta {}, delay one period + {} s (bus transit {} s)",
         header["plant_source"].as_str().unwrap_or(""),
         header["axis"].as_str().unwrap_or(""),
@@ -366,13 +366,14 @@ fn print_header(header: &serde_json::Value) {
             .and_then(serde_json::Value::as_f64)
             .unwrap_or(0.0),
         header["bus_transit_s"]
-    );
-    println!(
+    )?;
+    scanhil_protocol::outln!(
         "margins asked: {} deg, {} dB; discretisation {}",
         header["margins"]["phase_deg"],
         header["margins"]["gain_db"],
         header["method"].as_str().unwrap_or("")
-    );
+    )?;
+    Ok(())
 }
 
 fn print_design(
@@ -380,15 +381,15 @@ fn print_design(
     design: &Design,
     reach: &serde_json::Value,
     out: Option<&Path>,
-) {
-    print_header(header);
-    println!("rule: {}", design.settings.description);
+) -> std::io::Result<()> {
+    print_header(header)?;
+    scanhil_protocol::outln!("rule: {}", design.settings.description)?;
     let f = &design.figures;
     let opt =
         |v: Option<f64>, unit: &str| v.map_or("none".to_string(), |v| format!("{v:.3} {unit}"));
-    println!("nominal closed loop (stable):");
-    println!("  crossover            {}", opt(f.crossover_hz, "Hz"));
-    println!(
+    scanhil_protocol::outln!("nominal closed loop (stable):")?;
+    scanhil_protocol::outln!("  crossover            {}", opt(f.crossover_hz, "Hz"))?;
+    scanhil_protocol::outln!(
         "  phase margin (min)   {}   gain crossovers: {}",
         opt(f.phase_margin_deg, "deg"),
         f.gain_crossovers
@@ -396,56 +397,62 @@ fn print_design(
             .map(|c| format!("{:.2} Hz ({:+.1} deg)", c.f_hz, c.phase_margin_deg))
             .collect::<Vec<_>>()
             .join(", ")
-    );
-    println!("  gain margin          {}", opt(f.gain_margin_db, "dB"));
-    println!(
+    )?;
+    scanhil_protocol::outln!("  gain margin          {}", opt(f.gain_margin_db, "dB"))?;
+    scanhil_protocol::outln!(
         "  sensitivity peak     {:.2} dB at {:.2} Hz",
-        f.sensitivity_peak_db, f.sensitivity_peak_hz
-    );
-    println!("  -3 dB bandwidth      {}", opt(f.bandwidth_3db_hz, "Hz"));
-    println!(
+        f.sensitivity_peak_db,
+        f.sensitivity_peak_hz
+    )?;
+    scanhil_protocol::outln!("  -3 dB bandwidth      {}", opt(f.bandwidth_3db_hz, "Hz"))?;
+    scanhil_protocol::outln!(
         "  peak of T            {:.2} dB at {:.2} Hz",
-        f.peak_db, f.peak_hz
-    );
+        f.peak_db,
+        f.peak_hz
+    )?;
     for at in &f.at_drive {
-        println!(
+        scanhil_protocol::outln!(
             "  at {:8.3} Hz: T {:+.4} dB {:+.3} deg, error of a sine {:.3} %",
             at.f_hz,
             at.t_db,
             at.t_deg,
             100.0 * at.error_relative
-        );
+        )?;
     }
     if let Some(p) = f.predicted_tracking {
         let pct = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{:.3} %", 100.0 * v));
-        println!(
+        scanhil_protocol::outln!(
             "  predicted tracking error (rms / peak): alpha {}, beta {}",
             pct(p.alpha_rms_relative),
             pct(p.beta_rms_relative)
-        );
+        )?;
     }
-    println!(
+    scanhil_protocol::outln!(
         "  slowest pole |z| {:.9}: settles to 1e-3 in {:.2} s",
-        f.spectral_radius, f.settle_s
-    );
-    print_reach(reach, header["rate_hz"].as_f64().unwrap_or(f64::NAN));
+        f.spectral_radius,
+        f.settle_s
+    )?;
+    print_reach(reach, header["rate_hz"].as_f64().unwrap_or(f64::NAN))?;
     if let Some(out) = out {
-        println!("written: {}", out.display());
+        scanhil_protocol::outln!("written: {}", out.display())?;
     }
+    Ok(())
 }
 
-fn print_reach(reach: &serde_json::Value, rate_hz: f64) {
-    println!("reach at {rate_hz} Hz (tracked to 1 % rms of the peak, margins kept):");
+fn print_reach(reach: &serde_json::Value, rate_hz: f64) -> std::io::Result<()> {
+    scanhil_protocol::outln!(
+        "reach at {rate_hz} Hz (tracked to 1 % rms of the peak, margins kept):"
+    )?;
     match reach["pid"].as_object() {
-        Some(p) => println!(
+        Some(p) => scanhil_protocol::outln!(
             "  PID: crossover {:.1} Hz at most; sines up to {:.2} Hz",
             p["crossover_hz"].as_f64().unwrap_or(f64::NAN),
             p["sine_hz"].as_f64().unwrap_or(f64::NAN)
-        ),
-        None => println!("  PID: no alpha-tuned PID keeps the margins"),
+        )?,
+        None => scanhil_protocol::outln!("  PID: no alpha-tuned PID keeps the margins")?,
     }
     match reach["dual_tone"].as_object() {
-        Some(d) => println!(
+        Some(d) => scanhil_protocol::outln!(
             "  dual-tone: drive frequencies up to {} Hz (the trajectory's, scaled together)",
             d["drive_hz"]
                 .as_array()
@@ -455,9 +462,10 @@ fn print_reach(reach: &serde_json::Value, rate_hz: f64) {
                     .collect::<Vec<_>>()
                     .join(", "))
                 .unwrap_or_default()
-        ),
-        None => {
-            println!("  dual-tone: no scaling of the trajectory's drive frequencies tracks to 1 %")
-        }
+        )?,
+        None => scanhil_protocol::outln!(
+            "  dual-tone: no scaling of the trajectory's drive frequencies tracks to 1 %"
+        )?,
     }
+    Ok(())
 }

@@ -274,12 +274,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         "rig": rig.as_ref().map(Rig::to_json),
         "imaging": &report,
     });
-    std::fs::write(
+    scanhil_protocol::whole_file::write_file(
         &json,
         serde_json::to_string_pretty(&report_json).context("formatting report.json")? + "\n",
     )
     .with_context(|| format!("writing {}", json.display()))?;
-    println!(
+    scanhil_protocol::outln!(
         "{}: {} samples, {} points ({} missing), model {}, {}x{} cells of {} mm, coverage {:.3}",
         args.input.display(),
         report.samples,
@@ -290,27 +290,27 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         report.grid.ny,
         report.grid.pitch_mm,
         report.coverage_fraction
-    );
+    )?;
     if let Some(f) = &report.feature {
-        println!(
+        scanhil_protocol::outln!(
             "feature height {:.4} mm, std {:.4} mm over {} points (plane: {} inliers, tilt {:.3} deg)",
             f.height_mm,
             f.std_mm,
             f.points,
             f.plane.inliers,
             f.plane.plane.tilt_rad().to_degrees()
-        );
+        )?;
     }
     if let Some(e) = &report.truth_error {
         let mm = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.4}"));
-        println!(
+        scanhil_protocol::outln!(
             "against the true surface: measured cells RMS {} mm, median |error| {} mm, max {} mm",
             mm(e.covered_rms_mm),
             mm(e.covered_median_abs_mm),
             mm(e.covered_max_mm)
-        );
+        )?;
     }
-    println!("wrote {}", args.out_dir.display());
+    scanhil_protocol::outln!("wrote {}", args.out_dir.display())?;
     for (file, why) in &report.failed_files {
         eprintln!("error: {file} not written: {why}");
     }

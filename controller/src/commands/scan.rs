@@ -6,12 +6,8 @@ use std::process::ExitCode;
 use anyhow::Context;
 use scanhil_controller::run::output::REPORT;
 use scanhil_controller::run::scenario::{NodeLink, Scenario, ScenarioError, TimingMode};
+use scanhil_controller::run::verdict::Status;
 use scanhil_controller::run::{ScanEnd, ScanOptions, default_out_dir, run_scan};
-
-/// Exit status of a scan that stopped early (link timeout, node fault, link failure, a
-/// recording that could not be written) or whose outputs could not all be written; the
-/// outputs it could write are written.
-const EXIT_STOPPED: u8 = 3;
 
 /// Run a scan scenario (fixtures/scenarios/*.json) and write its output folder.
 #[derive(Debug, clap::Args)]
@@ -121,12 +117,16 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             &std::fs::read_to_string(&report_path)
                 .with_context(|| format!("reading back {}", report_path.display()))?,
         )?;
-        println!("{}", summary_text(&report, &out_dir));
+        scanhil_protocol::outln!("{}", summary_text(&report, &out_dir))?;
     }
-    let mut code = ExitCode::SUCCESS;
     if let ScanEnd::Stopped(why) = &result.end {
         eprintln!("scanhil: scan stopped early: {why}");
-        code = ExitCode::from(EXIT_STOPPED);
+    }
+    if result.verdict.status == Status::Failed {
+        eprintln!(
+            "scanhil: the scan completed but its result is not valid: {}",
+            result.verdict.reasons.join("; ")
+        );
     }
     if !result.failed_outputs.is_empty() {
         eprintln!(
@@ -134,9 +134,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             out_dir.display(),
             result.failed_outputs
         );
-        code = ExitCode::from(EXIT_STOPPED);
     }
-    Ok(code)
+    Ok(ExitCode::from(result.exit_code()))
 }
 
 fn summary_text(report: &serde_json::Value, out_dir: &std::path::Path) -> String {
@@ -175,6 +174,22 @@ fn summary_text(report: &serde_json::Value, out_dir: &std::path::Path) -> String
         );
     } else if let Some(error) = imaging["feature_error"].as_str() {
         text += &format!("feature height: not measured ({error})\n");
+    }
+    let outcome = &report["outcome"];
+    for note in outcome["notes"].as_array().into_iter().flatten() {
+        text += &format!("note: {}\n", note.as_str().unwrap_or("?"));
+    }
+    if let Some(verdict) = outcome["verdict"].as_str().filter(|v| *v != "complete") {
+        text += &format!(
+            "verdict: {verdict}: {}\n",
+            outcome["reasons"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .filter_map(serde_json::Value::as_str)
+                .collect::<Vec<_>>()
+                .join("; ")
+        );
     }
     if report["timing"]["mode"] == "realtime" {
         text += &realtime_summary(&report["timing"], &report["scenario"]["timing"]);

@@ -78,12 +78,12 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     };
     let range = args.range_mm.as_ref().map(|r| (r[0], r[1]));
     let figures = trajectory.figures(range);
-    println!(
+    scanhil_protocol::outln!(
         "{}",
         serde_json::to_string_pretty(
             &serde_json::json!({ "trajectory": trajectory, "figures": figures })
         )?
-    );
+    )?;
     if let Some(path) = &args.plot {
         let duration = figures.frame_time_s.unwrap_or(1.0).min(10.0);
         let n = 20_000;

@@ -10,6 +10,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use scanhil_geometry::{GeometryModel, Scanner, ScannerSetup};
+use scanhil_protocol::whole_file;
 use scanhil_scene::truth::TrueScene;
 
 use super::feature::{FeatureError, FeatureHeight, FeatureParams, feature_height};
@@ -393,7 +394,9 @@ pub fn write_outputs(
     let mut written = Written::default();
     written.attempt(
         POINTS_PLY,
-        write_ply_file(&dir.join(POINTS_PLY), &r.cloud, encoding).map_err(ImagingError::from),
+        whole(dir, POINTS_PLY, |path| {
+            write_ply_file(path, &r.cloud, encoding)
+        }),
     );
     let map_quantity = if imaging.plane.is_some() {
         "height_above_plane_mm"
@@ -401,24 +404,24 @@ pub fn write_outputs(
         "z_mm"
     };
     let caption = quantity_caption(map_quantity);
-    let map_range_mm = imaging.map.draw_png(
-        &dir.join(HEIGHT_MAP_PNG),
-        &format!(
-            "height map ({model} model, {})",
-            match imaging.options.fill {
-                FillMethod::None => "not filled",
-                FillMethod::Nearest => "filled: nearest",
-                FillMethod::Diffusion => "filled: diffusion",
-            }
-        ),
-        caption,
-    );
-    let map_range_mm = written
-        .attempt(HEIGHT_MAP_PNG, map_range_mm.map_err(ImagingError::from))
-        .flatten();
+    let map_range_mm = whole(dir, HEIGHT_MAP_PNG, |path| {
+        imaging.map.draw_png(
+            path,
+            &format!(
+                "height map ({model} model, {})",
+                match imaging.options.fill {
+                    FillMethod::None => "not filled",
+                    FillMethod::Nearest => "filled: nearest",
+                    FillMethod::Diffusion => "filled: diffusion",
+                }
+            ),
+            caption,
+        )
+    });
+    let map_range_mm = written.attempt(HEIGHT_MAP_PNG, map_range_mm).flatten();
     written.attempt(
         HEIGHT_MAP_CSV,
-        write_csv_file(&dir.join(HEIGHT_MAP_CSV), |out| imaging.map.write_csv(out)),
+        write_csv_file(dir, HEIGHT_MAP_CSV, |out| imaging.map.write_csv(out)),
     );
     if !imaging.progressive.is_empty() {
         let mut comparison = ProgressiveComparison::new(
@@ -436,9 +439,7 @@ pub fn write_outputs(
         });
         written.attempt(
             PROGRESSIVE_SVG,
-            comparison
-                .draw(&dir.join(PROGRESSIVE_SVG))
-                .map_err(ImagingError::from),
+            whole(dir, PROGRESSIVE_SVG, |path| comparison.draw(path)),
         );
     }
     let frame = imaging
@@ -453,16 +454,18 @@ pub fn write_outputs(
         frame,
         &SNAPSHOT_FRACTIONS,
     );
-    let drawn = draw_snapshots(
-        &dir.join(SNAPSHOTS_PNG),
-        &format!(
-            "the map after parts of the {:.3} s frame (no fill)",
-            frame.length_s
-        ),
-        caption,
-        &[(String::new(), snapshots.clone())],
-    );
-    written.attempt(SNAPSHOTS_PNG, drawn.map_err(ImagingError::from));
+    let drawn = whole(dir, SNAPSHOTS_PNG, |path| {
+        draw_snapshots(
+            path,
+            &format!(
+                "the map after parts of the {:.3} s frame (no fill)",
+                frame.length_s
+            ),
+            caption,
+            &[(String::new(), snapshots.clone())],
+        )
+    });
+    written.attempt(SNAPSHOTS_PNG, drawn);
     let spec = imaging.map.spec;
     let profile_centre = match &imaging.feature {
         Some(Ok(f)) => ProfileCentre {
@@ -484,15 +487,13 @@ pub fn write_outputs(
             Some(plane.map_or(z, |plane| plane.height_mm([x, y, z])))
         },
     );
-    let drawn = draw_profiles(
-        &dir.join(PROFILES_SVG),
-        caption,
-        &[("this scan".to_string(), &profiles)],
-    );
-    written.attempt(PROFILES_SVG, drawn.map_err(ImagingError::from));
+    let drawn = whole(dir, PROFILES_SVG, |path| {
+        draw_profiles(path, caption, &[("this scan".to_string(), &profiles)])
+    });
+    written.attempt(PROFILES_SVG, drawn);
     written.attempt(
         PROFILES_CSV,
-        write_csv_file(&dir.join(PROFILES_CSV), |out| profiles.write_csv(out)),
+        write_csv_file(dir, PROFILES_CSV, |out| profiles.write_csv(out)),
     );
     let report = ImagingReport {
         model: model.to_string(),
@@ -549,17 +550,38 @@ impl Written {
     }
 }
 
-/// Writes a CSV file with `write` (buffered), naming the file in an error.
+/// Writes `file` in `dir` whole or not at all ([`whole_file`]): `write` writes the (temporary)
+/// path it is given.
+fn whole<T, E: Into<ImagingError>>(
+    dir: &Path,
+    file: &str,
+    write: impl FnOnce(&Path) -> Result<T, E>,
+) -> Result<T, ImagingError> {
+    let path = dir.join(file);
+    whole_file::write_whole(
+        &path,
+        |partial| write(partial).map_err(Into::into),
+        |source| ImagingError::Io {
+            path: path.clone(),
+            source,
+        },
+    )
+}
+
+/// Writes CSV `file` in `dir` whole with `write` (buffered), naming the file in an error.
 fn write_csv_file(
-    path: &Path,
+    dir: &Path,
+    file: &str,
     write: impl FnOnce(std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
 ) -> Result<(), ImagingError> {
-    std::fs::File::create(path)
-        .and_then(|file| write(std::io::BufWriter::new(file)))
-        .map_err(|source| ImagingError::Io {
-            path: path.to_owned(),
-            source,
-        })
+    whole(dir, file, |path| {
+        std::fs::File::create(path)
+            .and_then(|file| write(std::io::BufWriter::new(file)))
+            .map_err(|source| ImagingError::Io {
+                path: path.to_owned(),
+                source,
+            })
+    })
 }
 
 /// Samples that went into a reconstruction.

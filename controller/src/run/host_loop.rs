@@ -52,7 +52,7 @@ pub struct LoopRecord {
     pub lead_in_periods: u64,
     /// Periods in which the coil command was clipped.
     pub saturated_periods: u64,
-    /// Of those, the ones in the lead-in (lockstep; real time counts none there).
+    /// Of those, the ones in the lead-in.
     pub saturated_in_lead_in: u64,
     /// Why the run stopped early, if it did.
     pub stopped_by: Option<LoopError>,
@@ -112,6 +112,17 @@ impl LoopRecord {
     pub fn keeping_angles(mut self, keep: bool) -> LoopRecord {
         self.angles = keep.then(|| AngleTrack::new(self.period_s));
         self
+    }
+
+    /// Periods in which the coil command was clipped during the recorded frame: none when the
+    /// run stopped in its lead-in.
+    #[must_use]
+    pub fn saturated_in_frame(&self) -> u64 {
+        if self.periods_done <= self.lead_in_periods {
+            0
+        } else {
+            self.saturated_periods - self.saturated_in_lead_in
+        }
     }
 
     /// Records reading `k` (the angles at loop time `(k + 1) * period`) against the reference

@@ -25,6 +25,8 @@
 //!   [`lead_in`] before the recorded frame, predicted tracking error.
 //! - [`pairing`]: distances with angles by the sensor's own time.
 //! - [`tracking`]: reference against measured angles.
+//! - [`verdict`]: whether the run did what it was asked (complete, stopped, failed), from its
+//!   figures alone.
 //! - [`output`]: report.json, PLY, height map, plots.
 //! - [`output_failures`]: outputs that could not be written, listed instead of ending the
 //!   scan.
@@ -66,6 +68,7 @@ pub mod scenario;
 pub mod sensor_link;
 pub mod sensor_setup;
 pub mod tracking;
+pub mod verdict;
 
 use std::io::BufRead;
 use std::path::{Path, PathBuf};
@@ -232,13 +235,29 @@ impl ScanEnd {
     }
 }
 
-/// What a scan came to: how its loop ended, and the outputs that could not be written.
-#[derive(Debug, Clone, PartialEq, Eq)]
+/// What a scan came to: how its loop ended, its verdict, and the outputs that could not be
+/// written.
+#[derive(Debug, Clone, PartialEq)]
 pub struct ScanResult {
     /// How the loop ended.
     pub end: ScanEnd,
+    /// Whether the run did what it was asked ([`verdict`]).
+    pub verdict: verdict::Verdict,
     /// Output files that could not be written, with why (the others were written).
     pub failed_outputs: OutputFailures,
+}
+
+impl ScanResult {
+    /// The exit status of `scanhil scan`: 0 complete, 3 stopped early or an output not
+    /// written, 4 completed but not valid ([`verdict::Status::exit_code`]).
+    #[must_use]
+    pub fn exit_code(&self) -> u8 {
+        if self.failed_outputs.is_empty() {
+            self.verdict.status.exit_code()
+        } else {
+            verdict::Status::Stopped.exit_code()
+        }
+    }
 }
 
 /// Runs a scenario and writes its output folder; returns how it ended and which outputs
@@ -413,6 +432,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             sensor_arrivals: links.sensor.take_arrival_bound(),
             sensor: links.sensor.take_samples(),
             sensor_setup: links.sensor_setup,
+            plant: links.plant,
             emulator_summary,
             frame_faults,
             run_time_s: started.elapsed().as_secs_f64(),
@@ -493,6 +513,8 @@ pub struct OpenLinks {
     pub emulator_lines: Option<mpsc::Receiver<String>>,
     /// What the sensor set-up did, when the plan asked for one.
     pub sensor_setup: Option<sensor_setup::SensorSetupReport>,
+    /// What the emulated plant declares of itself (nothing for real devices).
+    pub plant: verdict::PlantDeclares,
     /// The recordings being written (`record_dir`), each with its first write error.
     pub recordings: Vec<RecordingFailure>,
     /// The recordings that could not be created.
@@ -563,6 +585,8 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         }
         Some(NodeLink::Uri(uri)) => emulator_args.extend(["--sensor".into(), uri.clone()]),
     }
+    // What the plant declares of itself: an emulator's ready line does, a real node does not.
+    let mut plant = verdict::PlantDeclares::default();
     let (emulator, emulator_lines) = if spawn {
         let binary = locate_emulator(plan.emulator.as_deref())?;
         let mut process = EmulatorProcess::start(&binary, &emulator_args)?;
@@ -584,11 +608,13 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
                 process.path().display()
             );
         };
-        EmulatedDevices::from_ready_line(&ready).check(
+        let devices = EmulatedDevices::from_ready_line(&ready);
+        devices.check(
             &plan.scene,
             plan.period_s,
             plan.sensor_expectation.map(|s| s.measuring_rate_hz),
         )?;
+        plant.dynamics = Some(devices.dynamics);
         (Some(process), Some(lines))
     } else {
         (None, None)
@@ -657,6 +683,7 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         emulator,
         emulator_lines,
         sensor_setup,
+        plant,
     })
 }
 
@@ -714,6 +741,8 @@ pub struct EmulatedDevices {
     pub period_s: f64,
     /// The emulated sensor's measuring rate, Hz, if it serves one.
     pub sensor_measuring_rate_hz: Option<f64>,
+    /// Whether the emulated mirror has dynamics (part `axes`): without them it never moves.
+    pub dynamics: bool,
 }
 
 impl EmulatedDevices {
@@ -723,6 +752,9 @@ impl EmulatedDevices {
         EmulatedDevices {
             period_s: ready["period_s"].as_f64().unwrap_or(f64::NAN),
             sensor_measuring_rate_hz: ready["sensor_measuring_rate_hz"].as_f64(),
+            dynamics: ready["active_parts"]
+                .as_array()
+                .is_some_and(|parts| parts.iter().any(|part| part == "axes")),
         }
     }
 

@@ -76,6 +76,12 @@ impl OutputFolder {
             .and_then(|_| write!(lock, "process {}", std::process::id()))
             .with_context(|| format!("writing {}", lock_path.display()))?;
         for name in SCAN_FILES {
+            // What a scan killed mid-write left under its temporary name.
+            let partial = scanhil_protocol::whole_file::partial_path(&path.join(name));
+            if partial.is_file() {
+                std::fs::remove_file(&partial)
+                    .with_context(|| format!("removing {}", partial.display()))?;
+            }
             let stale = path.join(name);
             let Ok(metadata) = std::fs::symlink_metadata(&stale) else {
                 continue;

@@ -34,11 +34,13 @@ use super::sample_log::CountedSample;
 use super::scenario::Scenario;
 use super::sensor_link::SensorCounters;
 use super::tracking::{PlotPoint, TrackingSummary};
+use super::verdict::{PlantDeclares, RunFigures, SensorFigures, Status, judge};
 use super::{ScanEnd, ScanResult};
 use crate::imaging::grid::GridMethod;
 use crate::imaging::pipeline::{ImagingOptions, image_points, reconstruct_samples, write_outputs};
 use crate::imaging::ply::PlyEncoding;
 use crate::imaging::progressive::ScanFrame;
+use crate::steady_state::PredictedTracking;
 
 /// The mirror link's candump log.
 pub const FSM_LOG: &str = "fsm.log";
@@ -74,6 +76,8 @@ pub struct RunData {
     pub sensor_arrivals: Option<ArrivalBound>,
     /// What the sensor set-up before the run did.
     pub sensor_setup: Option<super::sensor_setup::SensorSetupReport>,
+    /// What the emulated plant declares of itself (nothing for real devices).
+    pub plant: PlantDeclares,
     /// The emulator's exit status and summary line, when it was started by this run.
     pub emulator_summary: Option<serde_json::Value>,
     /// What the injected frame faults did (`None`: none declared).
@@ -132,18 +136,6 @@ pub fn write(
     let samples = can_samples.into_iter().chain(ild_samples);
     let mut pairing = FramePairing::new(clock, frame.start_s, run.record.angles.take(), range);
     let record = &run.record;
-    let truth = scenario
-        .truth_scene()
-        .map(TrueScene::from_scene_file)
-        .transpose()
-        .or_else(|error| match error {
-            // An emulated scene without a surface (a control-only run) has nothing to score.
-            scanhil_scene::truth::TruthError::NoSurface { .. } if scenario.truth.is_none() => {
-                Ok(None)
-            }
-            error => Err(error),
-        })
-        .context("reading the true surface")?;
     let options = ImagingOptions {
         model: scenario.imaging.reconstruction,
         setup: rig.scanner.setup,
@@ -155,35 +147,66 @@ pub fn write(
         ..ImagingOptions::default()
     };
     // Paired as they are reconstructed (the filter keeps the samples' count as the bound the
-    // point cloud reserves).
+    // point cloud reserves). An imaging that fails is the verdict's reason, not the end of
+    // the report.
     let reconstruction = reconstruct_samples(
         samples.filter_map(|sample| pairing.pair(sample.counter, sample.value)),
         &options,
     );
     let imaging = if pairing.with_distance > 0 {
-        let reconstruction = reconstruction.context("imaging the scan")?;
-        let mut imaging = image_points(reconstruction, &options).context("imaging the scan")?;
-        imaging.score_progressive(truth.as_ref(), frame);
-        let report = write_outputs(
-            &imaging,
+        image_and_write(
+            scenario,
+            reconstruction,
+            &options,
+            frame,
             out_dir,
-            PlyEncoding::BinaryLittleEndian,
             &pairing.missing_by_reason,
         )
-        .context("writing the imaging outputs")?;
+        .map(Some)
+    } else {
+        Ok(None)
+    };
+    let (imaging, imaging_error) = match imaging {
+        Ok(imaging) => (imaging, None),
+        Err(error) => (
+            None,
+            Some(scanhil_protocol::error_text::chain_text(&*error)),
+        ),
+    };
+    if let Some(report) = &imaging {
         for (file, why) in &report.failed_files {
             failed.add(file, why.clone());
         }
-        Some(report)
-    } else {
-        None
-    };
+    }
     let tracking = record.tracking.summary();
     failed.attempt(
         TRACKING_SVG,
         write_tracking_plot(record, &tracking, plan, out_dir),
     );
     let end = ScanEnd::of(record);
+    // No prediction is compared where none applies: a scene without dynamics.
+    let predicted = match run.plant.dynamics {
+        Some(false) => None,
+        _ => Some(plan.predicted_tracking),
+    };
+    let unpredicted = PredictedTracking {
+        alpha_rms_relative: None,
+        beta_rms_relative: None,
+    };
+    let [alpha, beta] =
+        RunFigures::axes(&tracking.frame, predicted.as_ref().unwrap_or(&unpredicted));
+    let verdict = judge(&RunFigures {
+        stopped_by: record.stopped_by.as_ref().map(ToString::to_string),
+        frame_periods: tracking.frame.periods,
+        alpha,
+        beta,
+        plant: run.plant,
+        sensor: rig.sensor.map(|_| SensorFigures {
+            samples: sensor_samples as u64,
+            paired_with_distance: pairing.with_distance as u64,
+        }),
+        imaging_error: imaging_error.clone(),
+    });
     let figures = scenario.trajectory.figures(imaging.as_ref().map(|m| {
         (
             m.grid.nx as f64 * m.grid.pitch_mm,
@@ -213,9 +236,13 @@ pub fn write(
             "links": scenario.links,
         },
         "rig": rig.to_json(),
-        "outcome": match &end {
-            ScanEnd::Complete => serde_json::json!({"complete": true}),
-            ScanEnd::Stopped(why) => serde_json::json!({"complete": false, "stopped_by": why}),
+        "outcome": {
+            "complete": verdict.status == Status::Complete,
+            "verdict": verdict.status,
+            "stopped_by": record.stopped_by.as_ref().map(ToString::to_string),
+            "reasons": verdict.reasons,
+            "notes": verdict.notes,
+            "tracking_limits": verdict.tracking_limits,
         },
         "coils_at_end": coils_at_end(record, run.emulator_summary.as_ref()),
         "run_time_s": run.run_time_s,
@@ -224,7 +251,7 @@ pub fn write(
             "done": record.periods_done,
             "period_s": record.period_s,
             "saturated": record.saturated_periods,
-            "saturated_in_frame": record.saturated_periods - record.saturated_in_lead_in,
+            "saturated_in_frame": record.saturated_in_frame(),
             "planned_saturated_share": plan.planned_saturated_share,
         },
         "timing": {
@@ -240,7 +267,7 @@ pub fn write(
             "lead_in": plan.lead_in,
         },
         "tracking_error": tracking,
-        "predicted_tracking_error": plan.predicted_tracking,
+        "predicted_tracking_error": predicted,
         "sensor_setup": run.sensor_setup,
         "power": { "check": plan.power, "backoff": record.power_backoff },
         "trajectory": figures,
@@ -252,6 +279,7 @@ pub fn write(
             "sensor_clock": clock,
         },
         "imaging": imaging,
+        "imaging_error": imaging_error,
         "links": {
             "mirror": run.mirror_counters,
             "mirror_link": run.mirror_link,
@@ -264,11 +292,12 @@ pub fn write(
     });
     let text = serde_json::to_string_pretty(&report).context("formatting report.json")?;
     let path = out_dir.join(REPORT);
-    let written =
-        std::fs::write(&path, text + "\n").with_context(|| format!("writing {}", path.display()));
+    let written = scanhil_protocol::whole_file::write_file(&path, text + "\n")
+        .with_context(|| format!("writing {}", path.display()));
     failed.attempt(REPORT, written);
     Ok(ScanResult {
         end,
+        verdict,
         failed_outputs: failed,
     })
 }
@@ -288,6 +317,47 @@ fn coils_at_end(
         "node_final_state": summary.map(|summary| &summary["final_state"]),
         "node_held_coil_currents_a": summary.map(|summary| &summary["held_coil_currents_a"]),
     })
+}
+
+/// Images the frame's reconstruction (scored against the scenario's truth, when it has one)
+/// and writes the imaging outputs into `out_dir`.
+///
+/// # Errors
+/// A truth scene that cannot be read, points that cannot be imaged, outputs that cannot be
+/// written (each failed file is listed in the report instead).
+fn image_and_write(
+    scenario: &Scenario,
+    reconstruction: Result<
+        crate::imaging::reconstruct::Reconstruction,
+        crate::imaging::pipeline::ImagingError,
+    >,
+    options: &ImagingOptions,
+    frame: ScanFrame,
+    out_dir: &Path,
+    missing_by_reason: &BTreeMap<String, usize>,
+) -> anyhow::Result<crate::imaging::pipeline::ImagingReport> {
+    let truth = scenario
+        .truth_scene()
+        .map(TrueScene::from_scene_file)
+        .transpose()
+        .or_else(|error| match error {
+            // An emulated scene without a surface (a control-only run) has nothing to score.
+            scanhil_scene::truth::TruthError::NoSurface { .. } if scenario.truth.is_none() => {
+                Ok(None)
+            }
+            error => Err(error),
+        })
+        .context("reading the true surface")?;
+    let reconstruction = reconstruction.context("imaging the scan")?;
+    let mut imaging = image_points(reconstruction, options).context("imaging the scan")?;
+    imaging.score_progressive(truth.as_ref(), frame);
+    write_outputs(
+        &imaging,
+        out_dir,
+        PlyEncoding::BinaryLittleEndian,
+        missing_by_reason,
+    )
+    .context("writing the imaging outputs")
 }
 
 /// The sensor's error values by name.
@@ -483,7 +553,12 @@ fn write_tracking_plot(
             series: with_marker(windows),
         });
     }
-    draw_charts(&out_dir.join(TRACKING_SVG), &charts).context("writing tracking.svg")
+    scanhil_protocol::whole_file::write_whole(
+        &out_dir.join(TRACKING_SVG),
+        |path| draw_charts(path, &charts).map_err(anyhow::Error::from),
+        anyhow::Error::from,
+    )
+    .context("writing tracking.svg")
 }
 
 #[cfg(test)]

@@ -1,7 +1,8 @@
 //! [`PlantLink`] over a real mirror link, so `scanhil identify --fsm LINK` measures whatever
 //! is on the other end: the emulator (started here on a pty pair, `--fsm pty`), or a real
 //! mirror node (`--fsm slcan:/dev/ttyACM0`, `--fsm socketcan:can0`). Each exchange is one
-//! lockstep period.
+//! lockstep period. With a record folder every frame on the link goes to its `fsm.log`
+//! (candump `-L`, loop-time stamps), as a scan records it.
 
 use std::path::Path;
 use std::time::Duration;
@@ -11,6 +12,7 @@ use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
 use super::emulator_process::EmulatorProcess;
 use super::mirror_link::MirrorLink;
+use super::output_failures::{OutputFailures, RecordingFailure};
 use super::scenario::{NodeLink, TimingConfig};
 use super::{LinkPlan, open_links};
 use crate::link::{CoilsAtEnd, LinkError, PlantLink};
@@ -29,12 +31,15 @@ pub struct LinkedPlant {
     next_period: u64,
     /// How the session ended, once it has ([`PlantLink::end`]).
     ended: Option<CoilsAtEnd>,
+    /// The recording's write errors, and its creation's.
+    recordings: (Vec<RecordingFailure>, OutputFailures),
     _emulator: Option<EmulatorProcess>,
 }
 
 impl LinkedPlant {
     /// Connects to the mirror node on `fsm`. With [`NodeLink::Pty`], starts
     /// `scanhil-emulator serve --scene SCENE` on a new pty pair (the scene is then required).
+    /// With `record_dir`, the link's frames are recorded to its `fsm.log`.
     ///
     /// # Errors
     /// A link that does not open, no emulator binary, no scene for an emulated node.
@@ -43,6 +48,7 @@ impl LinkedPlant {
         scene: Option<&Path>,
         emulator: Option<&Path>,
         period_s: f64,
+        record_dir: Option<&Path>,
     ) -> anyhow::Result<LinkedPlant> {
         let runtime = tokio::runtime::Builder::new_current_thread()
             .enable_all()
@@ -67,7 +73,7 @@ impl LinkedPlant {
             },
             period_s,
             duration_s: 0.0,
-            record_dir: None,
+            record_dir: record_dir.map(Path::to_owned),
             sensor_expectation: None,
         };
         let links = runtime.block_on(open_links(&plan))?;
@@ -77,8 +83,28 @@ impl LinkedPlant {
             period_s,
             next_period: 0,
             ended: None,
+            recordings: (links.recordings, links.recording_failures),
             _emulator: links.emulator,
         })
+    }
+
+    /// Ends the session (coils at zero, the link closed, the recording written out) and
+    /// returns the recording's failures: `file: error`, empty when it was written whole.
+    #[must_use]
+    pub fn finish(mut self) -> Vec<String> {
+        self.end();
+        let (written, created) = std::mem::take(&mut self.recordings);
+        drop(self);
+        let mut failures: Vec<String> = created
+            .iter()
+            .map(|(file, error)| format!("{file}: {error}"))
+            .collect();
+        failures.extend(
+            written
+                .iter()
+                .filter_map(|r| r.get().map(|error| format!("{}: {error}", r.name))),
+        );
+        failures
     }
 }
 

@@ -130,6 +130,9 @@ pub async fn run(
             record.coils_at_end.zero_commanded = end.is_ok();
             end
         } else {
+            if next == record.lead_in_periods {
+                record.saturated_in_lead_in = controller.saturated_periods();
+            }
             let command = controller.step(trajectory.reference_rad(next as f64 * period_s), angles);
             let send_deadline = tokio::time::Instant::now() + mirror.total_allowance();
             match coil_command_frame(next, command, (next + 1) as f64 * period_s) {

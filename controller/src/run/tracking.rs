@@ -3,9 +3,10 @@
 //! the whole run, and per window of [`WINDOW_S`] so the start-up transient can be seen
 //! decaying. Relative figures are the rms error over the reference's peak in the same stretch.
 
-use scanhil_protocol::plant_units::SensingPair;
+use scanhil_protocol::plant_units::{SensingAxis, SensingPair};
 
-/// Error statistics of one axis, in microradians.
+/// Error statistics of one axis, in microradians, with the reference's and the measured
+/// angle's extent over the same stretch (what the run's verdict judges motion by).
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct AxisError {
     /// Root mean square error, urad.
@@ -14,6 +15,13 @@ pub struct AxisError {
     pub max_abs_urad: f64,
     /// RMS error as a fraction of the reference's peak magnitude (0 when the reference is 0).
     pub rms_relative: f64,
+    /// The reference's peak magnitude, urad.
+    pub reference_peak_urad: f64,
+    /// The reference's span (largest minus smallest), urad.
+    pub reference_span_urad: f64,
+    /// The measured angle's span (largest minus smallest), urad: 0 for a mirror that never
+    /// moved.
+    pub measured_span_urad: f64,
 }
 
 /// Tracking error of both axes over a stretch of the run.
@@ -25,6 +33,17 @@ pub struct TrackingError {
     pub alpha: AxisError,
     /// The beta axis.
     pub beta: AxisError,
+}
+
+impl TrackingError {
+    /// The figures of `axis`.
+    #[must_use]
+    pub fn axis(&self, axis: SensingAxis) -> AxisError {
+        match axis {
+            SensingAxis::Alpha => self.alpha,
+            SensingAxis::Beta => self.beta,
+        }
+    }
 }
 
 /// The length of a tracking window, s.
@@ -68,6 +87,38 @@ pub struct PlotPoint {
     pub error_rad: SensingPair,
 }
 
+/// The smallest and largest value of one axis seen so far.
+#[derive(Debug, Clone, Copy)]
+struct Extent {
+    min: f64,
+    max: f64,
+}
+
+impl Default for Extent {
+    fn default() -> Extent {
+        Extent {
+            min: f64::INFINITY,
+            max: f64::NEG_INFINITY,
+        }
+    }
+}
+
+impl Extent {
+    fn add(&mut self, value: f64) {
+        self.min = self.min.min(value);
+        self.max = self.max.max(value);
+    }
+
+    /// Largest minus smallest; 0 before any value.
+    fn span(&self) -> f64 {
+        if self.max >= self.min {
+            self.max - self.min
+        } else {
+            0.0
+        }
+    }
+}
+
 /// Running error statistics of one stretch: sums, not samples, so a stretch of any length
 /// takes the same memory.
 #[derive(Debug, Clone, Copy, Default)]
@@ -76,11 +127,18 @@ struct Stretch {
     squared_error_sum: SensingPair,
     max_abs_error: SensingPair,
     reference_peak: SensingPair,
+    reference: [Extent; 2],
+    measured: [Extent; 2],
 }
 
 impl Stretch {
     fn add(&mut self, reference: SensingPair, error: SensingPair) {
         self.periods += 1;
+        let measured = [reference.alpha + error.alpha, reference.beta + error.beta];
+        for (i, value) in [reference.alpha, reference.beta].into_iter().enumerate() {
+            self.reference[i].add(value);
+            self.measured[i].add(measured[i]);
+        }
         self.squared_error_sum.alpha += error.alpha.powi(2);
         self.squared_error_sum.beta += error.beta.powi(2);
         self.max_abs_error.alpha = self.max_abs_error.alpha.max(error.alpha.abs());
@@ -91,22 +149,27 @@ impl Stretch {
 
     fn error(&self) -> TrackingError {
         let n = self.periods.max(1) as f64;
-        let axis = |squared_sum: f64, max_abs: f64, peak: f64| {
+        let axis = |i: usize, squared_sum: f64, max_abs: f64, peak: f64| {
             let rms = (squared_sum / n).sqrt();
             AxisError {
                 rms_urad: rms * 1e6,
                 max_abs_urad: max_abs * 1e6,
                 rms_relative: if peak > 0.0 { rms / peak } else { 0.0 },
+                reference_peak_urad: peak * 1e6,
+                reference_span_urad: self.reference[i].span() * 1e6,
+                measured_span_urad: self.measured[i].span() * 1e6,
             }
         };
         TrackingError {
             periods: self.periods,
             alpha: axis(
+                0,
                 self.squared_error_sum.alpha,
                 self.max_abs_error.alpha,
                 self.reference_peak.alpha,
             ),
             beta: axis(
+                1,
                 self.squared_error_sum.beta,
                 self.max_abs_error.beta,
                 self.reference_peak.beta,
@@ -254,6 +317,25 @@ mod tests {
         assert!((summary.whole_run.beta.max_abs_urad - 1.0).abs() < 1e-9);
         assert!((summary.whole_run.alpha.rms_relative - 2e-6 / 3e-3).abs() < 1e-12);
         assert_eq!(summary.whole_run.beta.rms_relative, 0.0);
+        // Extents: the reference 0 to 3 mrad on alpha, beta held at -1 urad.
+        let alpha = summary.whole_run.axis(SensingAxis::Alpha);
+        assert!((alpha.reference_span_urad - 3000.0).abs() < 1e-9);
+        assert!((alpha.measured_span_urad - 3000.0).abs() < 1e-9);
+        assert!((alpha.reference_peak_urad - 3000.0).abs() < 1e-9);
+        let beta = summary.whole_run.axis(SensingAxis::Beta);
+        assert_eq!(
+            (beta.reference_span_urad, beta.measured_span_urad),
+            (0.0, 0.0)
+        );
+        assert!((summary.frame.alpha.reference_span_urad - 2000.0).abs() < 1e-9);
+        assert_eq!(
+            TrackingRecorder::new(0.025, 4, 0)
+                .summary()
+                .frame
+                .alpha
+                .measured_span_urad,
+            0.0
+        );
     }
 
     #[test]

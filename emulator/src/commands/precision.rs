@@ -109,7 +109,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             .with_context(|| format!("cannot draw {}", path.display()))?;
     }
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        scanhil_protocol::outln!("{}", serde_json::to_string_pretty(&report)?)?;
     } else {
         print_or_broken_pipe(print_table(&report))?;
     }

@@ -96,7 +96,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         samples,
     };
     if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        scanhil_protocol::outln!("{}", serde_json::to_string_pretty(&report)?)?;
     } else {
         print_or_broken_pipe(print_table(&report, scene.has(Part::Axes)))?;
     }

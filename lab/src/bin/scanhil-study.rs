@@ -12,6 +12,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
+use scanhil_controller::run::verdict::Status;
 use scanhil_lab::study::plan::Study;
 use scanhil_lab::study::run::{VariantOutcome, default_jobs, run_variants};
 use scanhil_lab::study::table::{Row, collect};
@@ -88,49 +89,57 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 .iter()
                 .filter(|o| matches!(o, VariantOutcome::Failed(_)))
                 .count();
-            summarise(&rows, &out);
-            println!(
+            summarise(&rows, &out)?;
+            scanhil_protocol::outln!(
                 "{} variants on {jobs} threads in {:.2} s, {failed} failed",
                 rows.len(),
                 started.elapsed().as_secs_f64()
-            );
+            )?;
             Ok(exit_code(&rows))
         }
         Command::Plan { study, out } => {
             let study = Study::load(&study)?;
             for scenario in study.write_variants(&out)? {
-                println!("{}", scenario.display());
+                scanhil_protocol::outln!("{}", scenario.display())?;
             }
             Ok(ExitCode::SUCCESS)
         }
         Command::Collect { study, out } => {
             let rows = collect(&Study::load(&study)?, &out)?;
-            summarise(&rows, &out);
+            summarise(&rows, &out)?;
             Ok(exit_code(&rows))
         }
     }
 }
 
-fn summarise(rows: &[Row], out: &std::path::Path) {
-    for row in rows.iter().filter(|r| r.complete != Some(true)) {
+fn summarise(rows: &[Row], out: &std::path::Path) -> std::io::Result<()> {
+    for row in rows.iter().filter(|r| r.verdict != Some(Status::Complete)) {
         eprintln!(
-            "variant {}: {}",
+            "variant {} {}: {}",
             row.variant,
+            row.verdict.map_or("not run", Status::name),
             row.problem.as_deref().unwrap_or("incomplete")
         );
     }
-    println!(
+    scanhil_protocol::outln!(
         "wrote {} and {}",
         out.join("study.csv").display(),
         out.join("study.json").display()
-    );
+    )
 }
 
-/// 0 when every variant completed, 3 when some did not (their rows say why).
+/// 0 when every variant is complete; 3 when one stopped early or has no report; else 4 when
+/// one completed with a result that is not valid (their rows say why), as `scanhil scan`.
 fn exit_code(rows: &[Row]) -> ExitCode {
-    if rows.iter().all(|r| r.complete == Some(true)) {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(3)
-    }
+    let worst = rows
+        .iter()
+        .map(|row| row.verdict.unwrap_or(Status::Stopped))
+        .map(Status::exit_code)
+        .max_by_key(|code| match code {
+            0 => 0,
+            4 => 1,
+            _ => 2,
+        })
+        .unwrap_or(0);
+    ExitCode::from(worst)
 }

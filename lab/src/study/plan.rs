@@ -243,7 +243,9 @@ impl BaseDocuments {
             }
             let target = dir.join(format!("{document}.json"));
             write_json(&target, &json)?;
-            scenario[document] = Value::String(target.display().to_string());
+            // Absolute: the scenario resolves a relative path against its own folder, so a
+            // study written under a relative `--out` would name `out/.../out/.../scene.json`.
+            scenario[document] = Value::String(absolute(&target).display().to_string());
         }
         let target = dir.join("scenario.json");
         write_json(&target, &scenario)?;

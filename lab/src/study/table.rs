@@ -10,6 +10,7 @@ use anyhow::Context;
 use serde_json::Value;
 
 use super::plan::{Study, variant_dir};
+use scanhil_controller::run::verdict::Status;
 
 /// The result folder inside a variant's folder.
 pub const RESULT_DIR: &str = "result";
@@ -23,9 +24,9 @@ pub struct Row {
     pub variant: usize,
     /// The values the study set, by key.
     pub parameters: BTreeMap<String, Value>,
-    /// Whether every planned period ran (`None`: no report).
-    pub complete: Option<bool>,
-    /// Why the variant has no figures or stopped early.
+    /// The run's verdict: complete, stopped or failed (`None`: no report).
+    pub verdict: Option<Status>,
+    /// Why the variant has no figures or is not complete (the verdict's reasons).
     pub problem: Option<String>,
     /// The feature (stud) height, mm.
     pub stud_height_mm: Option<f64>,
@@ -65,7 +66,7 @@ impl Row {
         let mut row = Row {
             variant: index + 1,
             parameters: study.variants[index].clone(),
-            complete: None,
+            verdict: None,
             problem: None,
             stud_height_mm: None,
             stud_std_mm: None,
@@ -91,11 +92,22 @@ impl Row {
             }
         };
         let number = |pointer: &str| report.pointer(pointer).and_then(Value::as_f64);
-        row.complete = report.pointer("/outcome/complete").and_then(Value::as_bool);
-        row.problem = report
-            .pointer("/outcome/stopped_by")
-            .and_then(Value::as_str)
-            .map(str::to_owned)
+        row.verdict = verdict_of(&report);
+        let reasons: Vec<&str> = report
+            .pointer("/outcome/reasons")
+            .and_then(Value::as_array)
+            .into_iter()
+            .flatten()
+            .filter_map(Value::as_str)
+            .collect();
+        row.problem = (!reasons.is_empty())
+            .then(|| reasons.join("; "))
+            .or_else(|| {
+                report
+                    .pointer("/outcome/stopped_by")
+                    .and_then(Value::as_str)
+                    .map(str::to_owned)
+            })
             .or_else(|| {
                 report
                     .pointer("/imaging/feature_error")
@@ -128,6 +140,26 @@ impl Row {
     }
 }
 
+/// A report's verdict: `outcome.verdict`, or for a report written before verdicts,
+/// `outcome.complete` read as complete or stopped.
+fn verdict_of(report: &Value) -> Option<Status> {
+    match report.pointer("/outcome/verdict").and_then(Value::as_str) {
+        Some("complete") => Some(Status::Complete),
+        Some("stopped") => Some(Status::Stopped),
+        Some("failed") => Some(Status::Failed),
+        _ => report
+            .pointer("/outcome/complete")
+            .and_then(Value::as_bool)
+            .map(|complete| {
+                if complete {
+                    Status::Complete
+                } else {
+                    Status::Stopped
+                }
+            }),
+    }
+}
+
 /// Reads every variant's result and writes `study.csv` and `study.json` into `out_dir`.
 ///
 /// # Errors
@@ -144,7 +176,7 @@ pub fn collect(study: &Study, out_dir: &Path) -> anyhow::Result<Vec<Row>> {
         "scenario": study.scenario.display().to_string(),
         "rows": rows,
     });
-    std::fs::write(
+    scanhil_protocol::whole_file::write_file(
         &json_path,
         serde_json::to_string_pretty(&json).context("formatting study.json")? + "\n",
     )
@@ -152,13 +184,14 @@ pub fn collect(study: &Study, out_dir: &Path) -> anyhow::Result<Vec<Row>> {
     let csv_path = out_dir.join("study.csv");
     let mut csv = Vec::new();
     write_csv(&mut csv, &study.keys(), &rows).context("formatting study.csv")?;
-    std::fs::write(&csv_path, csv).with_context(|| format!("writing {}", csv_path.display()))?;
+    scanhil_protocol::whole_file::write_file(&csv_path, csv)
+        .with_context(|| format!("writing {}", csv_path.display()))?;
     Ok(rows)
 }
 
 /// The figure columns after the variant number and the parameters.
 const FIGURE_COLUMNS: [&str; 10] = [
-    "complete",
+    "verdict",
     "stud_height_mm",
     "stud_std_mm",
     "tracking_rms_relative_alpha",
@@ -196,7 +229,7 @@ pub fn write_csv(out: &mut impl Write, keys: &[String], rows: &[Row]) -> std::io
             Some(Value::String(s)) => s.clone(),
             Some(other) => other.to_string(),
         }));
-        cells.push(row.complete.map_or(String::new(), |c| c.to_string()));
+        cells.push(row.verdict.map_or(String::new(), |v| v.name().to_owned()));
         cells.extend(
             [
                 row.stud_height_mm,
@@ -247,7 +280,7 @@ mod tests {
                 ("scenario.seed".to_owned(), Value::from(3)),
                 ("scenario.controller".to_owned(), Value::from("/a,b.json")),
             ]),
-            complete: Some(false),
+            verdict: Some(Status::Stopped),
             problem: Some("link timeout: \"x\"".into()),
             stud_height_mm: Some(4.66),
             stud_std_mm: None,
@@ -274,13 +307,13 @@ mod tests {
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(
             lines[0],
-            "variant,scenario.controller,scenario.seed,complete,stud_height_mm,stud_std_mm,\
+            "variant,scenario.controller,scenario.seed,verdict,stud_height_mm,stud_std_mm,\
              tracking_rms_relative_alpha,tracking_rms_relative_beta,coverage,\
              median_abs_error_mm,run_time_s,parts_us_per_period,problem"
         );
         assert_eq!(
             lines[1],
-            "1,\"/a,b.json\",3,false,4.66,,,,,,0.5,axes:0.020 sensor:1.416,\"link timeout: \"\"x\"\"\""
+            "1,\"/a,b.json\",3,stopped,4.66,,,,,,0.5,axes:0.020 sensor:1.416,\"link timeout: \"\"x\"\"\""
         );
     }
 }
