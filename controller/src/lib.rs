@@ -11,6 +11,8 @@
 //! - [`discretise`]: per-section discretisation (Tustin, prewarped Tustin, zero-order hold,
 //!   matched pole-zero, forward and backward Euler).
 //! - [`sos`]: discrete sections, their cascade (direct form II transposed) and state space.
+//! - [`eigen`]: eigenvalues (poles) of a state matrix, balanced first so extreme gains give
+//!   their true poles.
 //! - [`pid`]: Table II PID (series and parallel readings) with limit and anti-windup.
 //! - [`dual_tone`]: eq. 5 with Table I, optionally with the tones moved onto the drive
 //!   frequencies.
@@ -48,6 +50,7 @@ pub mod decode;
 pub mod design;
 pub mod discretise;
 pub mod dual_tone;
+pub mod eigen;
 pub mod fit;
 pub mod identify;
 pub mod identify_recording;

@@ -41,11 +41,20 @@ impl ZPoint {
 
 impl std::fmt::Display for ZPoint {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(
-            f,
-            "{:.9}{:+.9}j (|z| = {:.9}, {:.4} Hz)",
-            self.re, self.im, self.abs, self.f_hz
-        )
+        // Poles of an extreme gain reach 1e97: those in scientific notation, not 98 digits.
+        if self.abs < 1e6 {
+            write!(
+                f,
+                "{:.9}{:+.9}j (|z| = {:.9}, {:.4} Hz)",
+                self.re, self.im, self.abs, self.f_hz
+            )
+        } else {
+            write!(
+                f,
+                "{:.9e}{:+.9e}j (|z| = {:.9e}, {:.4} Hz)",
+                self.re, self.im, self.abs, self.f_hz
+            )
+        }
     }
 }
 
@@ -172,6 +181,11 @@ impl NominalLoop {
     /// feed-through, so the loop is well posed).
     #[must_use]
     pub fn closed_loop_poles(&self) -> Vec<Complex<f64>> {
+        crate::eigen::eigenvalues(self.closed_loop_matrix())
+    }
+
+    /// The closed loop's state matrix: plant states first, then the controller's.
+    fn closed_loop_matrix(&self) -> DMatrix<f64> {
         let c = self.controller.state_space();
         let p = self.plant.state_space();
         let (nc, np) = (c.order(), p.order());
@@ -182,7 +196,7 @@ impl NominalLoop {
         a.view_mut((0, np), (np, nc)).copy_from(&(&p.b * &c.c));
         a.view_mut((np, 0), (nc, np)).copy_from(&(-(&c.b * &p.c)));
         a.view_mut((np, np), (nc, nc)).copy_from(&c.a);
-        a.complex_eigenvalues().iter().copied().collect()
+        a
     }
 
     /// The analysis frequency grid: log spaced from 0.1 Hz to just below Nyquist, plus fine
@@ -372,6 +386,41 @@ mod tests {
             (got - want).abs() <= tolerance,
             "{what}: got {got}, the closed form gives {want} (tolerance {tolerance})"
         );
+    }
+
+    #[test]
+    fn a_pid_with_an_extreme_gain_gets_the_asymptotic_poles() {
+        // The paper's PID with kp = 1e200 on its nominal plant. For large z the controller is
+        // its feed-through D and the plant (one period of delay: Cp Bp = 0) is
+        // Cp Ap Bp / z^2, so 1 + L = 0 puts two poles at z^2 = -D Cp Ap Bp. Unbalanced, the QR
+        // iteration found at most |z| = 2.0 (a refusal naming the wrong poles).
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../fixtures/controllers/pid-series.json");
+        let text = std::fs::read_to_string(&path).expect("the fixture");
+        let huge = text.replace(r#""kp": 2.567"#, r#""kp": 1e200"#);
+        assert_ne!(huge, text, "the fixture's kp");
+        let file = tempfile::NamedTempFile::new().expect("a temporary file");
+        std::fs::write(file.path(), huge).expect("writing it");
+        let settings = crate::settings::ControllerSettings::load(file.path())
+            .expect("the controller loads (its stability is checked when built)");
+        let axis = settings.axis_controller().expect("a PID discretises");
+        let nominal = settings.nominal_loop(&axis);
+        let (c, p) = (
+            nominal.controller.state_space(),
+            nominal.plant.state_space(),
+        );
+        assert_eq!((&p.c * &p.b)[(0, 0)], 0.0, "one period of delay");
+        let asymptote = (c.d * (&p.c * &p.a * &p.b)[(0, 0)]).abs().sqrt();
+        assert!(asymptote > 1e90, "{asymptote:e}");
+        let mut magnitudes: Vec<f64> = nominal
+            .closed_loop_poles()
+            .iter()
+            .map(|z| z.norm())
+            .collect();
+        magnitudes.sort_by(f64::total_cmp);
+        for largest in &magnitudes[magnitudes.len() - 2..] {
+            close("|z| / asymptote", largest / asymptote, 1.0, 1e-6);
+        }
     }
 
     #[test]

@@ -194,10 +194,7 @@ impl StateSpace {
     /// The eigenvalues of `A` (the system's poles).
     #[must_use]
     pub fn poles(&self) -> Vec<Complex<f64>> {
-        if self.order() == 0 {
-            return Vec::new();
-        }
-        self.a.complex_eigenvalues().iter().copied().collect()
+        crate::eigen::eigenvalues(self.a.clone())
     }
 }
 

@@ -15,6 +15,7 @@
 //! - [`sensor`]: the ILD 2300-100 triangulation sensor on its own clock.
 //! - [`sensor_faults`]: the sensor losing its peak (laser off, out of range, occlusion).
 //! - [`mirror`]: eq. 4 per sensing axis, its parameters set per axis.
+//! - [`mode_limits`]: the ranges a mechanical mode's frequency, damping and gain may take.
 //! - [`latency`]: an axis's delay beyond one control period, on its measured angle.
 //! - [`amplifier`], [`cross_talk`], [`power`], [`angle_sensor`]: the drive and the angle
 //!   sensor.
@@ -36,6 +37,7 @@ pub mod drive_stepper;
 pub mod integrator;
 pub mod latency;
 pub mod mirror;
+pub mod mode_limits;
 pub mod optics;
 pub mod part_cost;
 pub mod plant;

@@ -26,6 +26,9 @@
 
 use serde::{Deserialize, Serialize};
 
+use scanhil_protocol::validation::Allowed;
+
+use crate::mode_limits::{MAX_DAMPING_RATIO, MAX_DC_GAIN, MAX_NATURAL_FREQ_RAD_S};
 use crate::second_mode::SecondModeConfig;
 pub use scanhil_protocol::plant_units::SensingAxis;
 use scanhil_protocol::plant_units::SensingPair;
@@ -225,27 +228,30 @@ fn validate_values(
     period_s: f64,
 ) -> Result<(), (String, String)> {
     let bad = |field: &str, reason: String| Err((format!("{prefix}{field}"), reason));
-    if let Some(k) = values.dc_gain
-        && !(k.is_finite() && k != 0.0)
-    {
-        return bad("dc_gain", format!("must be finite and non-zero, got {k}"));
+    let ranged = |field: &str, allowed: Allowed, value: Option<f64>| {
+        allowed
+            .check_some(field, value)
+            .map_err(|invalid| (format!("{prefix}{}", invalid.field), invalid.reason))
+    };
+    if values.dc_gain == Some(0.0) {
+        return bad("dc_gain", "must be non-zero".into());
     }
-    if let Some(ws) = values.natural_freq_rad_s
-        && !(ws.is_finite() && ws > 0.0)
-    {
-        return bad(
-            "natural_freq_rad_s",
-            format!("must be finite and > 0, got {ws}"),
-        );
-    }
-    if let Some(zeta) = values.damping_ratio
-        && !(zeta.is_finite() && zeta >= 0.0)
-    {
-        return bad(
-            "damping_ratio",
-            format!("must be finite and >= 0 (a negatively damped mirror is unstable), got {zeta}"),
-        );
-    }
+    ranged(
+        "dc_gain",
+        Allowed::closed(-MAX_DC_GAIN, MAX_DC_GAIN, ""),
+        values.dc_gain,
+    )?;
+    ranged(
+        "natural_freq_rad_s",
+        Allowed::above(0.0, MAX_NATURAL_FREQ_RAD_S, "rad/s"),
+        values.natural_freq_rad_s,
+    )?;
+    // A negatively damped mirror is unstable.
+    ranged(
+        "damping_ratio",
+        Allowed::closed(0.0, MAX_DAMPING_RATIO, ""),
+        values.damping_ratio,
+    )?;
     if let Some(mode) = &values.second_mode {
         mode.validate(&format!("{prefix}second_mode."))?;
     }
@@ -289,6 +295,47 @@ mod tests {
         };
         let (field, _) = m.validate(TA).unwrap_err();
         assert_eq!(field, "mirror.damping_ratio");
+    }
+
+    #[test]
+    fn values_beyond_what_the_plant_can_step_are_refused_with_the_field_and_the_limits_pass() {
+        // A natural frequency of 1e40 rad/s once kept `scanhil-emulator step` spinning in the
+        // exact discretisation's matrix exponential.
+        let refused = |m: MirrorConfig| m.validate(TA).map_err(|(field, _)| field);
+        let with = |dc_gain: f64, natural_freq_rad_s: f64, damping_ratio: f64| MirrorConfig {
+            dc_gain,
+            natural_freq_rad_s,
+            damping_ratio,
+            ..MirrorConfig::default()
+        };
+        let nominal = MirrorConfig::default();
+        let (k, ws, zeta) = (
+            nominal.dc_gain,
+            nominal.natural_freq_rad_s,
+            nominal.damping_ratio,
+        );
+        for (m, field) in [
+            (with(k, 1e40, zeta), "mirror.natural_freq_rad_s"),
+            (
+                with(k, MAX_NATURAL_FREQ_RAD_S * 1.01, zeta),
+                "mirror.natural_freq_rad_s",
+            ),
+            (with(k, ws, 1e40), "mirror.damping_ratio"),
+            (
+                with(k, ws, MAX_DAMPING_RATIO * 1.01),
+                "mirror.damping_ratio",
+            ),
+            (with(1e300, ws, zeta), "mirror.dc_gain"),
+            (with(-MAX_DC_GAIN * 1.01, ws, zeta), "mirror.dc_gain"),
+            (with(0.0, ws, zeta), "mirror.dc_gain"),
+        ] {
+            assert_eq!(refused(m).err().as_deref(), Some(field));
+        }
+        assert_eq!(
+            refused(with(MAX_DC_GAIN, MAX_NATURAL_FREQ_RAD_S, MAX_DAMPING_RATIO)),
+            Ok(())
+        );
+        assert_eq!(refused(with(-MAX_DC_GAIN, ws, 0.0)), Ok(()));
     }
 
     #[test]

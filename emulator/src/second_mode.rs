@@ -15,7 +15,10 @@
 //! `z'' = y - 2 zeta_2 w2 z' - w2^2 z` driven by the first mode's angle `y`; the mode's output
 //! is a fixed combination of `y`, `z` and `z'` ([`SecondModeConfig::output_row`]).
 
+use scanhil_protocol::validation::Allowed;
 use serde::{Deserialize, Serialize};
+
+use crate::mode_limits::{MAX_DAMPING_RATIO, MAX_NATURAL_FREQ_RAD_S};
 
 /// The second mode of one axis.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -50,17 +53,17 @@ impl SecondModeConfig {
     /// Checks the values; on failure, the field (after `prefix`) and why.
     pub fn validate(&self, prefix: &str) -> Result<(), (String, String)> {
         let field = |name: &str| format!("{prefix}{name}");
-        for (name, value) in [
-            ("natural_freq_hz", Some(self.natural_freq_hz)),
-            ("damping_ratio", Some(self.damping_ratio)),
-            ("zero_freq_hz", self.zero_freq_hz),
-            ("zero_damping_ratio", self.zero_damping_ratio),
+        let frequency = Allowed::above(0.0, MAX_NATURAL_FREQ_RAD_S / std::f64::consts::TAU, "Hz");
+        let damping = Allowed::above(0.0, MAX_DAMPING_RATIO, "");
+        for (name, value, allowed) in [
+            ("natural_freq_hz", Some(self.natural_freq_hz), frequency),
+            ("damping_ratio", Some(self.damping_ratio), damping),
+            ("zero_freq_hz", self.zero_freq_hz, frequency),
+            ("zero_damping_ratio", self.zero_damping_ratio, damping),
         ] {
-            if let Some(v) = value
-                && !(v.is_finite() && v > 0.0)
-            {
-                return Err((field(name), format!("must be finite and > 0, got {v}")));
-            }
+            allowed
+                .check_some(name, value)
+                .map_err(|invalid| (field(name), invalid.reason))?;
         }
         Ok(())
     }

@@ -454,6 +454,23 @@ fn each_richer_value_is_refused_with_its_field_named() {
             r#", "mirror": {"beta": {"second_mode": {"natural_freq_hz": -1.0, "damping_ratio": 0.02}}}"#,
             "mirror.beta.second_mode.natural_freq_hz",
         ),
+        // Beyond what the exact discretisation can step (1e40 once spun forever).
+        (
+            r#", "mirror": {"second_mode": {"natural_freq_hz": 1e40, "damping_ratio": 0.02}}"#,
+            "mirror.second_mode.natural_freq_hz",
+        ),
+        (
+            r#", "mirror": {"second_mode": {"natural_freq_hz": 1200.0, "damping_ratio": 1e40}}"#,
+            "mirror.second_mode.damping_ratio",
+        ),
+        (
+            r#", "mirror": {"second_mode": {"natural_freq_hz": 1200.0, "damping_ratio": 0.02, "zero_freq_hz": 1.6e7}}"#,
+            "mirror.second_mode.zero_freq_hz",
+        ),
+        (
+            r#", "mirror": {"second_mode": {"natural_freq_hz": 1200.0, "damping_ratio": 0.02, "zero_freq_hz": 900.0, "zero_damping_ratio": 1001.0}}"#,
+            "mirror.second_mode.zero_damping_ratio",
+        ),
     ] {
         assert_eq!(refused(r#""axes", "second_mode""#, extra), field, "{extra}");
     }

@@ -282,7 +282,7 @@ fn poly_roots(p: &[f64]) -> (f64, Vec<Complex<f64>>) {
             companion[(i + 1, i)] = 1.0;
         }
     }
-    let roots = companion.complex_eigenvalues().iter().copied().collect();
+    let roots = crate::eigen::eigenvalues(companion);
     (lead, roots)
 }
 
