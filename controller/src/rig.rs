@@ -23,6 +23,7 @@ use scanhil_geometry::ScannerSetup;
 use scanhil_protocol::ild::command::{AddValue, AddValueSet, BAUD_RATES_UNCHECKED, MeasuringRate};
 use scanhil_protocol::ild::stream::{FACTORY_BAUD, check_baud};
 use scanhil_protocol::ild::{IldOutputInfo, MeasuringRange};
+use scanhil_protocol::validation::Allowed;
 use serde::{Deserialize, Serialize};
 
 use crate::imaging::reconstruct::ScanSample;
@@ -201,35 +202,45 @@ impl Calibration {
     }
 
     fn check(&self) -> Result<(), (&'static str, String)> {
-        for (field, value) in [
+        let offset = Allowed::closed(-MAX_ANGLE_OFFSET_URAD, MAX_ANGLE_OFFSET_URAD, "urad");
+        let gain = Allowed::above(0.0, MAX_ANGLE_GAIN, "");
+        let distance = Allowed::closed(-MAX_DISTANCE_OFFSET_MM, MAX_DISTANCE_OFFSET_MM, "mm");
+        for (field, allowed, value) in [
             (
                 "scanner.calibration.alpha_offset_urad",
+                offset,
                 self.alpha_offset_urad,
             ),
             (
                 "scanner.calibration.beta_offset_urad",
+                offset,
                 self.beta_offset_urad,
             ),
+            ("scanner.calibration.alpha_gain", gain, self.alpha_gain),
+            ("scanner.calibration.beta_gain", gain, self.beta_gain),
             (
                 "scanner.calibration.distance_offset_mm",
+                distance,
                 self.distance_offset_mm,
             ),
         ] {
-            if !value.is_finite() {
-                return Err((field, format!("{value} must be finite")));
-            }
-        }
-        for (field, gain) in [
-            ("scanner.calibration.alpha_gain", self.alpha_gain),
-            ("scanner.calibration.beta_gain", self.beta_gain),
-        ] {
-            if !(gain.is_finite() && gain > 0.0) {
-                return Err((field, format!("{gain} must be positive and finite")));
-            }
+            allowed
+                .check(field, value)
+                .map_err(|invalid| (field, invalid.reason))?;
         }
         Ok(())
     }
 }
+
+/// The largest angle offset a calibration may correct, urad: a whole radian, far beyond a
+/// mirror's range.
+pub const MAX_ANGLE_OFFSET_URAD: f64 = 1e6;
+
+/// The largest angle gain a calibration may apply (a reading off by a factor of 100).
+pub const MAX_ANGLE_GAIN: f64 = 100.0;
+
+/// The largest distance offset a calibration may add, mm: ten times the ILD 2300-100's range.
+pub const MAX_DISTANCE_OFFSET_MM: f64 = 1000.0;
 
 /// The distance sensor: an ILD 2300.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -97,6 +97,46 @@ fn timing_values_no_end_can_run_are_refused_by_the_host_naming_file_field_or_fla
 }
 
 #[test]
+fn imaging_and_calibration_values_no_machine_can_hold_are_refused_before_the_loop() {
+    // Once found after the whole loop, with no report.json and no field named (1e-5 mm), or
+    // run for 220 s into 9.9 GB of memory and a 2.79 GB height map (0.0013 mm).
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let out = dir.path().join("out");
+    let out_arg = out.to_str().expect("UTF-8");
+    for pitch in ["1e-5", "0.0013"] {
+        let scenario = edited_scenario(dir.path(), "test-duplo-stud", |scenario| {
+            scenario["imaging"]["pitch_mm"] = pitch.parse::<f64>().expect("a number").into();
+        });
+        refused_before_any_output(
+            &["scan", &scenario, "--out", out_arg],
+            &out,
+            &format!(
+                "{scenario}: field `imaging.pitch_mm`: {pitch} mm makes a height map of about"
+            ),
+        );
+    }
+    let rig_path = dir.path().join("rig.json");
+    let mut rig: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(fixture("rigs/paper-bench.json")).expect("the rig"),
+    )
+    .expect("JSON");
+    rig["scanner"]["calibration"]["distance_offset_mm"] = 1e300.into();
+    std::fs::write(&rig_path, rig.to_string()).expect("writing the rig");
+    let scenario = edited_scenario(dir.path(), "test-duplo-stud", |scenario| {
+        scenario["rig"] = rig_path.display().to_string().into();
+    });
+    refused_before_any_output(
+        &["scan", &scenario, "--out", out_arg],
+        &out,
+        &format!(
+            "{}: field `scanner.calibration.distance_offset_mm`: 1e300 mm is not within \
+             [-1000, 1000] mm",
+            rig_path.display()
+        ),
+    );
+}
+
+#[test]
 fn a_trajectory_at_or_above_nyquist_is_refused_naming_field_value_and_limit() {
     let dir = tempfile::tempdir().expect("a temporary folder");
     let scenario = scenario_with(

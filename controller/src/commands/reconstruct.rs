@@ -6,8 +6,10 @@ use std::process::ExitCode;
 use anyhow::Context;
 use scanhil_controller::imaging::feature::{FeatureParams, FeatureSelection, Region};
 use scanhil_controller::imaging::fill::FillMethod;
-use scanhil_controller::imaging::grid::GridMethod;
-use scanhil_controller::imaging::pipeline::{ImagingOptions, image_samples, write_outputs};
+use scanhil_controller::imaging::grid::{GridError, GridMethod};
+use scanhil_controller::imaging::pipeline::{
+    ImagingError, ImagingOptions, image_samples, write_outputs,
+};
 use scanhil_controller::imaging::ply::PlyEncoding;
 use scanhil_controller::imaging::progressive::ScanFrame;
 use scanhil_controller::imaging::ransac::RansacParams;
@@ -254,8 +256,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         },
         None => options,
     };
-    let mut imaging = image_samples(&recording.samples, &options)
-        .with_context(|| format!("imaging {}", args.input.display()))?;
+    // A pitch too fine for the points' area is the flag's fault: named, before any grid is
+    // allocated (the grid's size is checked before its cells are).
+    let mut imaging = image_samples(&recording.samples, &options).map_err(|error| match error {
+        ImagingError::Grid(grid @ GridError::TooLarge { .. }) => {
+            anyhow::anyhow!("--pitch-mm {}: {grid}", args.pitch_mm)
+        }
+        other => anyhow::Error::new(other).context(format!("imaging {}", args.input.display())),
+    })?;
     let frame = ScanFrame::spanning(recording.samples.iter().map(|s| s.t_s));
     imaging.score_progressive(truth.as_ref(), frame);
     let encoding = match args.ply {

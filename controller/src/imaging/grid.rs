@@ -48,7 +48,10 @@ pub enum GridError {
     #[error("no finite point to span a grid over")]
     NoPoints,
     /// The grid would have more cells than allowed.
-    #[error("grid of {nx} x {ny} cells exceeds the limit of {limit} cells (pitch too small?)")]
+    #[error(
+        "grid of {nx} x {ny} cells exceeds the limit of {limit} cells: the pitch must be at \
+         least {smallest_pitch_mm} mm"
+    )]
     TooLarge {
         /// Columns asked for.
         nx: usize,
@@ -56,11 +59,54 @@ pub enum GridError {
         ny: usize,
         /// The limit.
         limit: usize,
+        /// The smallest pitch whose grid fits the limit, mm.
+        smallest_pitch_mm: f64,
     },
 }
 
-/// The most cells a grid may have (64 Mi cells, about 1.5 GB of working memory).
-pub const MAX_CELLS: usize = 1 << 26;
+/// The most cells a grid may have: 4 Mi cells (2048 x 2048, a 0.02 mm pitch over a 40 mm
+/// scan, finer than the ILD 2300's spot). Imaging holds about [`BYTES_PER_CELL`] a cell (730
+/// MB at the limit) and the height map's CSV about [`CSV_BYTES_PER_CELL`] (210 MB).
+pub const MAX_CELLS: usize = 1 << 22;
+
+/// Imaging's working memory per grid cell, bytes: measured with `/usr/bin/time -v` on the
+/// Duplo stud scan at pitches of 0.01 and 0.005 mm (0.97 and 3.9 M cells: 175 and 176 bytes
+/// a cell above the run's own 20 MB).
+pub const BYTES_PER_CELL: f64 = 176.0;
+
+/// The height map CSV's bytes per cell (a line of x, y, height, samples and state: 50 bytes
+/// on that scan).
+pub const CSV_BYTES_PER_CELL: f64 = 52.0;
+
+/// Cells of a grid of `pitch_mm` over a `width_mm` x `height_mm` rectangle, as
+/// [`GridSpec::spanning`] lays it: one more than the whole pitches in each direction.
+#[must_use]
+pub fn cells_over(width_mm: f64, height_mm: f64, pitch_mm: f64) -> f64 {
+    ((width_mm / pitch_mm).floor() + 1.0) * ((height_mm / pitch_mm).floor() + 1.0)
+}
+
+/// The smallest pitch whose grid over a `width_mm` x `height_mm` rectangle has at most
+/// `cells` cells, mm, rounded up in its third significant digit (so it fits as printed).
+#[must_use]
+pub fn smallest_pitch_mm(width_mm: f64, height_mm: f64, cells: f64) -> f64 {
+    // (w u + 1)(h u + 1) = cells for u = 1 / pitch.
+    let (a, b, c) = (width_mm * height_mm, width_mm + height_mm, 1.0 - cells);
+    let u = if a > 0.0 {
+        (-b + (b * b - 4.0 * a * c).sqrt()) / (2.0 * a)
+    } else {
+        -c / b
+    };
+    round_up_3(1.0 / u)
+}
+
+/// `value` rounded up to three significant digits.
+fn round_up_3(value: f64) -> f64 {
+    if !(value.is_finite() && value > 0.0) {
+        return value;
+    }
+    let scale = 10f64.powi(2 - value.log10().floor() as i32);
+    (value * scale).ceil() / scale
+}
 
 impl GridSpec {
     /// The smallest grid of `pitch_mm` whose cells cover every finite `(x, y)` point.
@@ -101,6 +147,11 @@ impl GridSpec {
                 nx: fx as usize,
                 ny: fy as usize,
                 limit: MAX_CELLS,
+                smallest_pitch_mm: smallest_pitch_mm(
+                    x1_mm - x0_mm,
+                    y1_mm - y0_mm,
+                    MAX_CELLS as f64,
+                ),
             });
         }
         let (nx, ny) = (fx as usize, fy as usize);
@@ -370,4 +421,46 @@ pub fn grid_points(
         acc.add(x, y, h);
     }
     acc.height_map()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_smallest_pitch_fits_the_cells_and_a_little_less_does_not() {
+        for (w, h, cells) in [
+            (10.0, 30.0, 1e4),
+            (39.2, 12.5, MAX_CELLS as f64),
+            (0.0, 5.0, 100.0),
+        ] {
+            let pitch = smallest_pitch_mm(w, h, cells);
+            assert!(cells_over(w, h, pitch) <= cells, "{w} x {h}: {pitch}");
+            assert!(cells_over(w, h, pitch * 0.98) > cells, "{w} x {h}: {pitch}");
+        }
+    }
+
+    #[test]
+    fn a_grid_beyond_the_limit_names_the_smallest_pitch_that_fits() {
+        let error = GridSpec::spanning(0.0, 40.0, 0.0, 40.0, 1e-3).unwrap_err();
+        let GridError::TooLarge {
+            smallest_pitch_mm, ..
+        } = error
+        else {
+            panic!("{error}")
+        };
+        assert!(GridSpec::spanning(0.0, 40.0, 0.0, 40.0, smallest_pitch_mm).is_ok());
+        assert!(
+            error
+                .to_string()
+                .ends_with(&format!("at least {smallest_pitch_mm} mm"))
+        );
+    }
+
+    #[test]
+    fn pitches_are_rounded_up_in_their_third_digit() {
+        assert_eq!(round_up_3(0.0012301), 0.00124);
+        assert_eq!(round_up_3(12.3), 12.3);
+        assert_eq!(round_up_3(f64::INFINITY), f64::INFINITY);
+    }
 }

@@ -16,6 +16,9 @@
 //!   arrivals bounding its clock).
 //! - [`sensor_setup`]: configuring and reading back the sensor before a scan.
 //! - [`bus_load`]: refusing a loop that cannot fit on a link's bit rate.
+//! - [`budget`]: what a scan will hold and write (the height map's grid over the area it can
+//!   cover, its recordings), checked before any link opens against what [`machine`] reads:
+//!   the available memory and the output folder's free disk.
 //! - [`chunked`]: what a run keeps per sample, in chunks freed as imaging passes them.
 //! - [`lockstep`], [`realtime`]: the two loops.
 //! - [`controller_timing`]: the host's real-time settings, wake-up probe and timing figures,
@@ -39,6 +42,7 @@
 //!   [`check_selection`]: which of them run (`--check`, `--skip`, `--destructive`).
 //! - [`plant_link`]: [`crate::link::PlantLink`] over a real mirror link, for `scanhil identify`.
 
+pub mod budget;
 pub mod bus_load;
 pub mod check_selection;
 pub mod chunked;
@@ -52,6 +56,7 @@ pub mod lead_in;
 pub mod link_faults;
 pub mod lockstep;
 pub mod loop_error;
+pub mod machine;
 pub mod mirror_link;
 pub mod out_folder;
 pub mod output;
@@ -271,14 +276,14 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
     let plan = ScanPlan::new(&scenario)?;
     // What runs (and is reported) is the trajectory after the power check.
     scenario.trajectory = plan.trajectory.clone();
+    let periods = plan.periods();
     let ScanPlan {
         mut controller,
         backoff,
         summary: plan_summary,
+        grid_cells,
         ..
     } = plan;
-    let periods =
-        plan_summary.lead_in.periods + (scenario.duration_s / controller.period_s()).round() as u64;
     let lead_in_periods = plan_summary.lead_in.periods;
     let rig = &scenario.rig;
     let period_s = controller.period_s();
@@ -287,6 +292,16 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
     if let Some(sensor) = &rig.sensor {
         sensor_setup::check_line(sensor, &scenario.links.sensor, &rig.path)?;
     }
+    let sensor_cycles = sensor_rate_hz.map_or(0.0, |rate_hz| rate_hz * periods as f64 * period_s);
+    let values_per_cycle = rig.sensor.map_or(0, |sensor| sensor.output().values.len());
+    budget::OutputBytes::of_run(periods, sensor_cycles, values_per_cycle, grid_cells)
+        .check(machine::free_disk_bytes(&options.out_dir))
+        .map_err(|invalid| {
+            scenario::ScenarioError::from(match options.flag_of(&invalid.field) {
+                Some(flag) => invalid.as_flag(flag),
+                None => invalid.in_file(&scenario.path),
+            })
+        })?;
     // Held to the end of the scan: a second scan into this folder is refused meanwhile.
     let _folder = out_folder::OutputFolder::claim(&options.out_dir)?;
 

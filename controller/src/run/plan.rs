@@ -4,15 +4,17 @@
 //! recorded frame ([`super::lead_in`]), and the steady-state tracking error the nominal loop
 //! predicts for the frame ([`crate::steady_state`]).
 
+use super::budget::{ScanArea, check_grid};
 use super::lead_in::LeadInPlan;
 use super::power_backoff::PowerBackoff;
 use super::power_guard::{PowerCheck, describe, guard};
-use super::scenario::Scenario;
+use super::scenario::{Scenario, ScenarioError};
 use crate::power_budget::{DriveLimits, loop_effort, saturated_share};
 use crate::scan_controller::ScanController;
 use crate::settings::ControllerSettings;
 use crate::steady_state::{PredictedTracking, predict};
 use crate::trajectory::Trajectory;
+use scanhil_protocol::plant_units::SensingAxis;
 
 /// A scan's plan.
 #[derive(Debug)]
@@ -25,6 +27,8 @@ pub struct ScanPlan {
     pub backoff: PowerBackoff,
     /// The frame's periods: the scenario's duration.
     pub frame_periods: u64,
+    /// The height map's cells over the area the scan can cover (0 without a sensor).
+    pub grid_cells: f64,
     /// For the report.
     pub summary: PlanSummary,
 }
@@ -82,6 +86,31 @@ impl ScanPlan {
                 lead_in.duration_s
             );
         }
+        let grid_cells = match rig.sensor {
+            Some(sensor) => {
+                let scanner = scanhil_geometry::Scanner::new(
+                    rig.scanner.setup,
+                    scenario.imaging.reconstruction,
+                )?;
+                let peaks_rad = (
+                    guarded.trajectory.peak_rad(SensingAxis::Alpha),
+                    guarded.trajectory.peak_rad(SensingAxis::Beta),
+                );
+                let area = ScanArea::of_rig(
+                    &scanner,
+                    &rig.scanner.calibration,
+                    peaks_rad,
+                    sensor.range(),
+                );
+                check_grid(
+                    &area,
+                    scenario.imaging.pitch_mm,
+                    super::machine::available_memory_bytes(),
+                )
+                .map_err(|invalid| ScenarioError::from(invalid.in_file(&scenario.path)))?
+            }
+            None => 0.0,
+        };
         let predicted_tracking = predict(&nominal, &guarded.trajectory);
         let planned_saturated_share = saturated_share(
             &guarded.trajectory,
@@ -114,6 +143,7 @@ impl ScanPlan {
             trajectory: guarded.trajectory,
             backoff: guarded.backoff,
             frame_periods: (scenario.duration_s / period_s).round() as u64,
+            grid_cells,
             summary: PlanSummary {
                 lead_in,
                 power: guarded.check,
