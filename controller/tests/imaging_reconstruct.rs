@@ -658,7 +658,10 @@ fn reconstruct_refuses_a_pitch_too_fine_for_the_points_naming_the_flag_and_the_s
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(stdout.contains(&format!("cells of {smallest} mm")), "{stdout}");
+    assert!(
+        stdout.contains(&format!("cells of {smallest} mm")),
+        "{stdout}"
+    );
 }
 
 #[test]

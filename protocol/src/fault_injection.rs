@@ -13,7 +13,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::can::{CanFrame, CanId, FrameFormat};
-use crate::message::spec::message_spec;
+use crate::message::spec::{Sender, message_spec};
 
 /// The kinds of fault a frame can suffer on the wire.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -148,6 +148,49 @@ impl DirectionFaults {
             }
         }
         Ok(())
+    }
+
+    /// Checks that each listed fault's message is one that `senders` send: a fault on a
+    /// message that never travels in this direction could never fire.
+    ///
+    /// # Errors
+    /// [`FaultConfigError`] naming `at[i].message` and who sends it.
+    pub fn check_senders(&self, senders: &[Sender]) -> Result<(), FaultConfigError> {
+        for (index, at) in self.at.iter().enumerate() {
+            let Some(spec) = at
+                .message
+                .as_deref()
+                .and_then(message_id)
+                .and_then(message_spec)
+            else {
+                continue;
+            };
+            if !senders.contains(&spec.sender) {
+                let named: Vec<&str> = senders.iter().map(|s| s.dbc_name()).collect();
+                return Err(FaultConfigError {
+                    field: format!("at[{index}].message"),
+                    reason: format!(
+                        "`{}` is sent by the {} and never travels this way (sent by {} only): \
+                         the fault could never fire",
+                        spec.name,
+                        spec.sender.dbc_name(),
+                        named.join(" and ")
+                    ),
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The first listed fault at or beyond `periods`, as `(index, period)`: one a run of that
+    /// many periods never reaches.
+    #[must_use]
+    pub fn first_beyond(&self, periods: u64) -> Option<(usize, u64)> {
+        self.at
+            .iter()
+            .enumerate()
+            .find(|(_, at)| at.period >= periods)
+            .map(|(index, at)| (index, at.period))
     }
 }
 

@@ -137,6 +137,76 @@ fn imaging_and_calibration_values_no_machine_can_hold_are_refused_before_the_loo
 }
 
 #[test]
+fn faults_that_could_never_fire_are_refused_naming_the_field() {
+    // Once accepted silently: a period beyond the run, an AngleReading fault on the host's
+    // direction, sensor faults on a rig without a sensor.
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let out = dir.path().join("out");
+    let out_arg = out.to_str().expect("UTF-8");
+    let beyond = edited_scenario(dir.path(), "test-loop-small", |scenario| {
+        scenario["faults"] = serde_json::json!({
+            "node_to_host": {"at": [{"period": 2000, "fault": "drop"}]}
+        });
+    });
+    refused_before_any_output(
+        &["scan", &beyond, "--out", out_arg],
+        &out,
+        &format!(
+            "{beyond}: field `faults.node_to_host.at[0].period`: period 2000 is beyond the \
+             run's 2000 periods"
+        ),
+    );
+    let small = fixture("scenarios/test-loop-small.json");
+    refused_before_any_output(
+        &[
+            "scan",
+            &small,
+            "--fault",
+            r#"host_to_node.at=[{"period":5,"fault":"drop","message":"AngleReading"}]"#,
+            "--out",
+            out_arg,
+        ],
+        &out,
+        "`AngleReading` is sent by the Fsm and never travels this way",
+    );
+    let no_sensor = edited_scenario(dir.path(), "test-loop-small", |scenario| {
+        scenario["faults"] = serde_json::json!({
+            "sensor": {"laser_off": [{"from_s": 0.01, "to_s": 0.02}]}
+        });
+    });
+    refused_before_any_output(
+        &["scan", &no_sensor, "--out", out_arg],
+        &out,
+        &format!("{no_sensor}: field `faults.sensor`: the rig has no sensor"),
+    );
+}
+
+#[test]
+fn the_report_says_the_emulator_ran_when_a_pty_link_started_it_despite_no_emulator() {
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    let out = dir.path().join("out");
+    let small = fixture("scenarios/test-loop-small.json");
+    let output = run_scanhil(&[
+        "scan",
+        &small,
+        "--no-emulator",
+        "--duration-s",
+        "0.01",
+        "--out",
+        out.to_str().expect("UTF-8"),
+    ]);
+    assert_eq!(
+        output.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let report = report(&out);
+    assert_eq!(report["scenario"]["links"]["spawn_emulator"], true);
+    assert!(report["emulator"].is_object(), "the emulator's summary");
+}
+
+#[test]
 fn a_trajectory_at_or_above_nyquist_is_refused_naming_field_value_and_limit() {
     let dir = tempfile::tempdir().expect("a temporary folder");
     let scenario = scenario_with(

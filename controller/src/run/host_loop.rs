@@ -557,6 +557,19 @@ mod tests {
     use super::*;
 
     #[test]
+    fn saturation_in_the_frame_counts_none_of_the_lead_ins_and_none_before_the_frame() {
+        // A scan stopped in its lead-in once reported 21 saturated periods for a frame of 0.
+        let mut record = LoopRecord::new(5e-5, 300).with_lead_in(100);
+        record.periods_done = 100;
+        record.saturated_periods = 21;
+        assert_eq!(record.saturated_in_frame(), 0);
+        record.periods_done = 150;
+        record.saturated_in_lead_in = 21;
+        record.saturated_periods = 30;
+        assert_eq!(record.saturated_in_frame(), 9);
+    }
+
+    #[test]
     fn the_lead_ins_angle_readings_go_as_the_loop_passes_them() {
         let trajectory: Trajectory = serde_json::from_value(serde_json::json!({
             "kind": "lissajous", "alpha_hz": 52.0, "beta_hz": 27.0

@@ -15,6 +15,7 @@ use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::fault_injection::{
     DirectionFaults, FaultConfigError, FrameInjector, FrameLedger, InjectedFault, SensorFaults,
 };
+use scanhil_protocol::message::spec::Sender;
 use serde::{Deserialize, Serialize};
 
 /// A scenario's `faults` section: frame faults per direction of the mirror's link and the
@@ -60,11 +61,47 @@ impl FaultsConfig {
         };
         self.host_to_node
             .check()
+            .and_then(|()| self.host_to_node.check_senders(&[Sender::Controller]))
             .map_err(prefixed("host_to_node"))?;
+        // The node's link also carries the sensor's Distance frames (sensor `fsm`).
         self.node_to_host
             .check()
+            .and_then(|()| {
+                self.node_to_host
+                    .check_senders(&[Sender::Fsm, Sender::Sensor])
+            })
             .map_err(prefixed("node_to_host"))?;
         self.sensor.check().map_err(prefixed("sensor"))
+    }
+
+    /// Checks that every fault listed at a period falls within a run of `periods` (lead-in
+    /// included), and sensor faults only where `has_sensor`: anything else could never fire.
+    ///
+    /// # Errors
+    /// [`FaultConfigError`] naming the field (`faults.node_to_host.at[0].period`).
+    pub fn check_reachable(&self, periods: u64, has_sensor: bool) -> Result<(), FaultConfigError> {
+        for (name, direction) in [
+            ("host_to_node", &self.host_to_node),
+            ("node_to_host", &self.node_to_host),
+        ] {
+            if let Some((index, period)) = direction.first_beyond(periods) {
+                return Err(FaultConfigError {
+                    field: format!("faults.{name}.at[{index}].period"),
+                    reason: format!(
+                        "period {period} is beyond the run's {periods} periods (0 to {}, \
+                         lead-in included): the fault could never fire",
+                        periods.saturating_sub(1)
+                    ),
+                });
+            }
+        }
+        if self.sensor.is_active() && !has_sensor {
+            return Err(FaultConfigError {
+                field: "faults.sensor".into(),
+                reason: "the rig has no sensor: sensor faults could never fire".into(),
+            });
+        }
+        Ok(())
     }
 
     /// Applies a command-line override `KEY=VALUE`: `KEY` a dotted path below `faults`

@@ -273,6 +273,10 @@ impl ScanResult {
 /// not open, no emulator binary) or from writing its outputs.
 pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<ScanResult> {
     let mut scenario = options.apply_to(scenario)?;
+    // What runs is reported: `--no-emulator` with a `pty` link still starts it.
+    scenario.links.spawn_emulator = scenario
+        .links
+        .starts_emulator(scenario.rig.sensor.is_some());
     let plan = ScanPlan::new(&scenario)?;
     // What runs (and is reported) is the trajectory after the power check.
     scenario.trajectory = plan.trajectory.clone();

@@ -15,6 +15,7 @@ use crate::settings::ControllerSettings;
 use crate::steady_state::{PredictedTracking, predict};
 use crate::trajectory::Trajectory;
 use scanhil_protocol::plant_units::SensingAxis;
+use scanhil_protocol::validation::Invalid;
 
 /// A scan's plan.
 #[derive(Debug)]
@@ -111,6 +112,13 @@ impl ScanPlan {
             }
             None => 0.0,
         };
+        let frame_periods = (scenario.duration_s / period_s).round() as u64;
+        scenario
+            .faults
+            .check_reachable(lead_in.periods + frame_periods, rig.sensor.is_some())
+            .map_err(|error| {
+                ScenarioError::from(Invalid::new(error.field, error.reason).in_file(&scenario.path))
+            })?;
         let predicted_tracking = predict(&nominal, &guarded.trajectory);
         let planned_saturated_share = saturated_share(
             &guarded.trajectory,
@@ -142,7 +150,7 @@ impl ScanPlan {
             controller,
             trajectory: guarded.trajectory,
             backoff: guarded.backoff,
-            frame_periods: (scenario.duration_s / period_s).round() as u64,
+            frame_periods,
             grid_cells,
             summary: PlanSummary {
                 lead_in,

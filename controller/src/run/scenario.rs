@@ -230,6 +230,17 @@ pub struct LinksConfig {
     pub spawn_emulator: bool,
 }
 
+impl LinksConfig {
+    /// Whether a scan starts the emulator: when asked, or for any `pty` link it uses (a pty
+    /// has nothing behind it but the emulator); `uses_sensor` when the rig has a sensor.
+    #[must_use]
+    pub fn starts_emulator(&self, uses_sensor: bool) -> bool {
+        self.spawn_emulator
+            || self.fsm == NodeLink::Pty
+            || (uses_sensor && self.sensor == NodeLink::Pty)
+    }
+}
+
 impl Default for LinksConfig {
     fn default() -> LinksConfig {
         LinksConfig {
