@@ -96,6 +96,34 @@ fn a_negative_number_is_a_value_for_every_numeric_flag() {
     );
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(json["figures"]["kind"], "lissajous");
+    // A list starting with a minus is a value too (once "unexpected argument '-5'"), and
+    // reaches the trajectory's own check, which names the flag.
+    for (flag, list, message) in [
+        (
+            "--lissajous",
+            "-52,27",
+            "--lissajous: -52 Hz must be positive and finite",
+        ),
+        (
+            "--raster",
+            "-2,34",
+            "--raster: -2 Hz must be positive and finite",
+        ),
+        (
+            "--range-mm",
+            "-11.5,18.5",
+            "--range-mm: -11.5 mm must be positive and finite",
+        ),
+    ] {
+        let mut args = vec!["trajectory", flag, list];
+        if flag == "--range-mm" {
+            args.extend(["--lissajous", "52,27"]);
+        }
+        let out = scanhil(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains(message), "{stderr}");
+    }
     // An override that cannot run reaches the scenario's validation, which names the flag.
     let scenario =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenarios/test-loop-small.json");

@@ -139,7 +139,12 @@ fn bad_recordings_name_file_line_and_field() {
         ),
         (
             "t_s,d_alpha_rad,d_beta_rad,ild_raw\n0,0,0,1.5\n",
-            "rec.csv:2: ild_raw: 1.5 is not an unsigned integer",
+            "rec.csv:2: ild_raw: 1.5 is not an 18-bit raw value (an integer from 0 to 262143)",
+        ),
+        // Beyond 18 bits: masked, 300000 once became 127.93 mm.
+        (
+            "t_s,d_alpha_rad,d_beta_rad,ild_raw\n0,0,0,1000\n5e-5,0,0,300000\n",
+            "rec.csv:3: ild_raw: 300000 is not an 18-bit raw value",
         ),
         (
             "{\"t_s\":0,\"d_alpha_rad\":0,\"z_meas_mm\":1}\n",

@@ -75,6 +75,47 @@ fn faults_declared_in_a_scenario_are_injected_detected_and_reported_over_ptys() 
 }
 
 #[test]
+fn with_every_frame_bit_flipped_the_final_zero_command_still_reaches_the_node_intact() {
+    // Every frame the host sends has a bit flipped, so the node never answers and the scan
+    // stops on its watchdog; the zero command it ends with goes past the injected faults.
+    let out = tempfile::tempdir().expect("a temporary folder");
+    let dir = out.path();
+    let output = run_scanhil(&[
+        "scan",
+        &fixture("scenarios/test-loop-small.json"),
+        "--out",
+        dir.to_str().expect("UTF-8 path"),
+        "--fault",
+        "host_to_node.bit_flip_rate=1",
+        "--watchdog-periods",
+        "20",
+    ]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(3), "{stderr}");
+    let report = report(dir);
+    let coils = &report["coils_at_end"];
+    assert_eq!(coils["zero_commanded"], true, "{coils}");
+    assert_eq!(coils["node_held_coil_currents_a"]["a"], 0.0, "{coils}");
+    assert_eq!(coils["node_held_coil_currents_a"]["b"], 0.0, "{coils}");
+    assert!(
+        report["faults"]["injected"]
+            .to_string()
+            .contains("bit_flip")
+    );
+    // The recording is the node's side of the link: its last CoilCommand is the zero, whole.
+    let log = std::fs::read_to_string(dir.join("fsm.log")).expect("fsm.log");
+    let last_command = log
+        .lines()
+        .filter(|line| line.contains(" 100#"))
+        .last()
+        .expect("a CoilCommand recorded");
+    assert!(
+        last_command.ends_with(" 100#0000000000000000"),
+        "{last_command}"
+    );
+}
+
+#[test]
 fn a_fault_override_on_the_command_line_is_checked_as_the_file_is() {
     let out = tempfile::tempdir().expect("a temporary folder");
     let dir = out.path().to_str().expect("UTF-8 path");

@@ -12,14 +12,25 @@ use scanhil_report::{Axis, Chart, Series, draw_charts};
 /// Arguments of `scanhil trajectory`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// A Lissajous scan: ALPHA_HZ,BETA_HZ (the paper's is 52,27).
-    #[arg(long, value_delimiter = ',', conflicts_with_all = ["raster", "file"])]
+    /// A Lissajous scan: ALPHA_HZ,BETA_HZ (the paper's is 52,27; a leading `-` is a
+    /// number's, never a flag's: `-52,27` reaches the trajectory's own check).
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        conflicts_with_all = ["raster", "file"]
+    )]
     lissajous: Option<Vec<f64>>,
     /// Phase of beta against alpha for --lissajous, degrees.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     phase_deg: f64,
     /// A raster scan: SLOW_HZ,FAST_HZ (the paper's is 2,34).
-    #[arg(long, value_delimiter = ',', conflicts_with = "file")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        allow_hyphen_values = true,
+        conflicts_with = "file"
+    )]
     raster: Option<Vec<f64>>,
     /// The axis carrying the slow triangle for --raster.
     #[arg(long, value_enum, default_value = "beta")]
@@ -28,7 +39,7 @@ pub struct Args {
     #[arg(long)]
     file: Option<PathBuf>,
     /// Scan range X_MM,Y_MM (x along beta, y along alpha) for spacings in mm, e.g. 11.5,18.5.
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     range_mm: Option<Vec<f64>>,
     /// Plot the path of one frame (or 1 s) as beta (x) against alpha (y) in degrees.
     #[arg(long)]
@@ -76,6 +87,25 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
             "give one of --lissajous ALPHA_HZ,BETA_HZ, --raster SLOW_HZ,FAST_HZ or --file FILE"
         ),
     };
+    // The file's checks (no control rate here, so no Nyquist limit), naming where the value
+    // came from.
+    trajectory.check(f64::INFINITY).map_err(|(field, reason)| {
+        let source = match (&args.lissajous, &args.raster, &args.file) {
+            (Some(_), _, _) => "--lissajous".to_owned(),
+            (_, Some(_), _) => "--raster".to_owned(),
+            (_, _, Some(path)) => format!("{}: field `{field}`", path.display()),
+            _ => field.to_owned(),
+        };
+        anyhow::anyhow!("{source}: {reason}")
+    })?;
+    if let Some(range) = &args.range_mm {
+        for value in range {
+            anyhow::ensure!(
+                value.is_finite() && *value > 0.0,
+                "--range-mm: {value} mm must be positive and finite"
+            );
+        }
+    }
     let range = args.range_mm.as_ref().map(|r| (r[0], r[1]));
     let figures = trajectory.figures(range);
     scanhil_protocol::outln!(

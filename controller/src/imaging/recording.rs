@@ -13,6 +13,7 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use scanhil_protocol::ild::value::RAW_MAX;
 use scanhil_protocol::ild::{IldValue, MeasuringRange};
 
 use super::reconstruct::ScanSample;
@@ -161,8 +162,14 @@ pub fn parse_recording(
             },
             DistanceColumn::IldRaw => {
                 let raw = number("ild_raw")?;
-                if raw.fract() != 0.0 || !(0.0..=f64::from(u32::MAX)).contains(&raw) {
-                    return Err(err("ild_raw", format!("{raw} is not an unsigned integer")));
+                if raw.fract() != 0.0 || !(0.0..=f64::from(RAW_MAX)).contains(&raw) {
+                    // An 18-bit value: beyond it, masking once turned 300000 into 127.93 mm.
+                    return Err(err(
+                        "ild_raw",
+                        format!(
+                            "{raw} is not an 18-bit raw value (an integer from 0 to {RAW_MAX})"
+                        ),
+                    ));
                 }
                 match IldValue::from_raw(raw as u32) {
                     IldValue::Distance(d) => range.digital_to_mm(d),
