@@ -32,6 +32,8 @@ mod sensor_transports;
 mod sensor_clock;
 // The controller's watchdog: a frozen or killed emulator stops the scan with a link timeout.
 mod controller_watchdog;
+// The emulator a scan starts: stopped when it never becomes ready, killed with its host.
+mod emulator_start;
 // Conformance checks against the emulator and deliberately non-conforming nodes, with JUnit XML.
 mod conformance;
 // Real time: statistics present and sane; bus-load refusal before a run.

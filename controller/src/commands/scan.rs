@@ -66,6 +66,10 @@ pub struct Args {
     /// scenario's (0: none).
     #[arg(long, allow_negative_numbers = true)]
     probe_s: Option<f64>,
+    /// How long the emulator this scan starts may take to become ready, in seconds, instead
+    /// of the scenario's `timing.emulator_ready_s` (default 20; the probe comes on top).
+    #[arg(long, allow_negative_numbers = true)]
+    emulator_ready_s: Option<f64>,
 }
 
 /// The timing modes on the command line.
@@ -102,6 +106,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         emulator_cpu: args.emulator_cpu,
         sched_fifo_priority: args.sched_fifo_priority,
         probe_s: args.probe_s,
+        emulator_ready_s: args.emulator_ready_s,
     };
     // A scenario error names its file already; anything else gets the scan's name.
     let result = run_scan(&scenario, &options).map_err(|error| {

@@ -134,6 +134,8 @@ pub struct ScanOptions {
     pub sched_fifo_priority: Option<u8>,
     /// Overrides the scenario's wake-up probe duration, s.
     pub probe_s: Option<f64>,
+    /// Overrides how long a started emulator may take to become ready, s.
+    pub emulator_ready_s: Option<f64>,
 }
 
 impl ScanOptions {
@@ -178,6 +180,7 @@ impl ScanOptions {
         timing.emulator_cpu = self.emulator_cpu.or(timing.emulator_cpu);
         timing.sched_fifo_priority = self.sched_fifo_priority.or(timing.sched_fifo_priority);
         timing.probe_s = self.probe_s.unwrap_or(timing.probe_s);
+        timing.emulator_ready_s = self.emulator_ready_s.unwrap_or(timing.emulator_ready_s);
         scenario
             .check_values()
             .map_err(|invalid| match self.flag_of(&invalid.field) {
@@ -211,6 +214,9 @@ impl ScanOptions {
                 given(self.sched_fifo_priority.is_some(), "--sched-fifo-priority")
             }
             "timing.probe_s" => given(self.probe_s.is_some(), "--probe-s"),
+            "timing.emulator_ready_s" => {
+                given(self.emulator_ready_s.is_some(), "--emulator-ready-s")
+            }
             "scene" | "faults.sensor" => given(
                 self.fsm.is_some() || self.sensor.is_some() || self.no_emulator,
                 "--fsm/--sensor/--no-emulator",
@@ -540,9 +546,6 @@ pub struct OpenLinks {
     pub recording_failures: OutputFailures,
 }
 
-/// How long an emulator started here may take to open its links.
-const EMULATOR_STARTUP: Duration = Duration::from_secs(60);
-
 /// Opens the links of `plan`, starting the emulator first when the plan says so.
 ///
 /// # Errors
@@ -565,6 +568,10 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
             TimingMode::Lockstep => "lockstep".into(),
             TimingMode::Realtime => "realtime".into(),
         },
+        // Killed with this process whatever ends it (started from this thread, which lives
+        // as long as the process: the kernel's signal follows the thread that forked).
+        "--exit-with-parent".into(),
+        std::process::id().to_string(),
     ];
     if timing.mode == TimingMode::Realtime {
         emulator_args.extend(realtime::emulator_args(&timing, plan.duration_s));
@@ -610,8 +617,9 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         let binary = locate_emulator(plan.emulator.as_deref())?;
         let mut process = EmulatorProcess::start(&binary, &emulator_args)?;
         let lines = process.stdout_lines();
+        let wait = timing.emulator_ready_wait();
         let ready = tokio::task::spawn_blocking(move || {
-            let first = lines.recv_timeout(EMULATOR_STARTUP);
+            let first = lines.recv_timeout(wait);
             (first, lines)
         })
         .await
@@ -621,10 +629,13 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
             .ok()
             .and_then(|line| serde_json::from_str::<serde_json::Value>(&line).ok())
             .filter(|line| line["event"] == "ready");
+        // Not ready: the process is stopped as it is dropped here.
         let Some(ready) = ready else {
             bail!(
-                "{} did not become ready (see its error above)",
-                process.path().display()
+                "{} did not become ready within {:.1} s (`timing.emulator_ready_s`, \
+                 `--emulator-ready-s`; see its error above, if any)",
+                process.path().display(),
+                wait.as_secs_f64()
             );
         };
         let devices = EmulatedDevices::from_ready_line(&ready);

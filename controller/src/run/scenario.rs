@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use scanhil_geometry::GeometryModel;
 use scanhil_protocol::loop_limits;
 use scanhil_protocol::scheduling::{self, RealtimeOptions};
-use scanhil_protocol::validation::{Invalid, InvalidValue};
+use scanhil_protocol::validation::{Allowed, Invalid, InvalidValue};
 use serde::{Deserialize, Serialize};
 
 use super::lead_in::LeadIn;
@@ -99,7 +99,15 @@ pub struct TimingConfig {
     pub sched_fifo_priority: Option<u8>,
     /// Real time: how long each end's wake-up probe runs before the loop, in seconds (0: none).
     pub probe_s: f64,
+    /// How long an emulator started here may take to say it is ready, in seconds (its
+    /// real-time wake-up probe, `probe_s`, comes on top); past it the emulator is stopped and
+    /// the scan refused.
+    pub emulator_ready_s: f64,
 }
+
+/// The allowed `timing.emulator_ready_s`: an emulator builds its plant and opens its links in
+/// well under a second; ten minutes covers any machine.
+pub const EMULATOR_READY_S: Allowed = Allowed::above(0.0, 600.0, "s");
 
 impl TimingConfig {
     /// What the host asks of the OS for its real-time loop.
@@ -169,7 +177,19 @@ impl TimingConfig {
                 ),
             ));
         }
-        loop_limits::PROBE_S.check("timing.probe_s", self.probe_s)
+        loop_limits::PROBE_S.check("timing.probe_s", self.probe_s)?;
+        EMULATOR_READY_S.check("timing.emulator_ready_s", self.emulator_ready_s)
+    }
+
+    /// How long an emulator started here may take to become ready: `emulator_ready_s`, and
+    /// in real time its wake-up probe.
+    #[must_use]
+    pub fn emulator_ready_wait(&self) -> std::time::Duration {
+        let probe_s = match self.mode {
+            TimingMode::Lockstep => 0.0,
+            TimingMode::Realtime => self.probe_s,
+        };
+        std::time::Duration::from_secs_f64(self.emulator_ready_s + probe_s)
     }
 }
 
@@ -184,6 +204,7 @@ impl Default for TimingConfig {
             emulator_cpu: None,
             sched_fifo_priority: None,
             probe_s: 0.5,
+            emulator_ready_s: 20.0,
         }
     }
 }

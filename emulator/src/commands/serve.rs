@@ -77,6 +77,11 @@ pub struct Args {
     /// Real time: run the wake-up probe for this long before the loop, in seconds (0: none).
     #[arg(long, default_value_t = DEFAULT_PROBE_S, allow_negative_numbers = true)]
     probe_s: f64,
+    /// End at once (SIGKILL, the kernel's parent-death signal) when the process with this id,
+    /// this emulator's parent, ends: `scanhil` passes its own, so a host killed at any moment
+    /// (its start-up probe included) leaves no emulator behind.
+    #[arg(long, value_name = "PID")]
+    exit_with_parent: Option<u32>,
 }
 
 /// `--ild-line-end`: what ends a command line at the emulated ILD.
@@ -103,6 +108,9 @@ fn parse_sensor_faults(text: &str) -> Result<SensorFaults, String> {
 /// # Errors
 /// A scene that does not load, a link that does not open, or a plant error.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    if let Some(parent) = args.exit_with_parent {
+        exit_with_parent(parent)?;
+    }
     let realtime = RealtimeOptions {
         busy_poll: args.busy_poll,
         cpu: args.cpu,
@@ -132,4 +140,20 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     };
     let outcome = scanhil_emulator::serve::serve(&config).context("serve")?;
     Ok(ExitCode::from(outcome.exit_status()))
+}
+
+/// Asks the kernel to SIGKILL this process when its parent ends, then checks the parent is
+/// still `parent` (one that ended before the request was made has left this process to init,
+/// and the signal would never come).
+///
+/// # Errors
+/// The request refused, or `parent` already gone.
+fn exit_with_parent(parent: u32) -> anyhow::Result<()> {
+    nix::sys::prctl::set_pdeathsig(nix::sys::signal::Signal::SIGKILL)
+        .context("--exit-with-parent: setting the parent-death signal")?;
+    let now = nix::unistd::getppid().as_raw();
+    if u32::try_from(now).ok() != Some(parent) {
+        anyhow::bail!("--exit-with-parent {parent}: that process has ended (the parent is {now})");
+    }
+    Ok(())
 }
