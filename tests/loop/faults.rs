@@ -106,8 +106,7 @@ fn with_every_frame_bit_flipped_the_final_zero_command_still_reaches_the_node_in
     let log = std::fs::read_to_string(dir.join("fsm.log")).expect("fsm.log");
     let last_command = log
         .lines()
-        .filter(|line| line.contains(" 100#"))
-        .last()
+        .rfind(|line| line.contains(" 100#"))
         .expect("a CoilCommand recorded");
     assert!(
         last_command.ends_with(" 100#0000000000000000"),
