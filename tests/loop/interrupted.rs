@@ -61,3 +61,69 @@ fn ctrl_c_stops_the_scan_cleanly_and_keeps_what_it_recorded() {
 fn sigterm_stops_the_scan_cleanly_and_keeps_what_it_recorded() {
     interrupt_with("TERM");
 }
+
+/// A signal while the points are imaged (the loop's handlers gone: a second Ctrl-C, a CI
+/// timeout's SIGTERM) ends the process by that signal, and the report written before the
+/// imaging stays: it says the imaging did not finish and lists its outputs as not written.
+fn interrupt_imaging_with(signal: &str) {
+    use std::os::unix::process::ExitStatusExt;
+
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    // A fine grid makes the imaging take seconds after the loop's fraction of a second.
+    let scenario = crate::bad_input::edited_scenario(dir.path(), "test-duplo-stud", |scenario| {
+        scenario["imaging"]["pitch_mm"] = 0.01.into();
+        scenario["duration_s"] = 0.05.into();
+    });
+    let out = dir.path().join("out");
+    let mut child = std::process::Command::new(crate::util::scanhil())
+        .args(["scan", &scenario, "--out", out.to_str().expect("UTF-8")])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("starting scanhil");
+    let report_path = out.join("report.json");
+    let started = std::time::Instant::now();
+    while !report_path.exists() {
+        if let Some(status) = child.try_wait().expect("polling scanhil") {
+            panic!("scanhil ended ({status}) before any report was written");
+        }
+        assert!(
+            started.elapsed() < crate::util::RUN_LIMIT,
+            "no report.json before the imaging"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    crate::util::signal(child.id(), signal);
+    let status = child.wait().expect("waiting for scanhil");
+    assert!(
+        status.signal().is_some(),
+        "ended by SIG{signal} during the imaging, not by finishing it: {status}"
+    );
+    let report = report(&out);
+    let unfinished = "the run ended while its points were imaged";
+    assert_eq!(
+        report["imaging_error"], unfinished,
+        "{}",
+        report["imaging_error"]
+    );
+    assert_eq!(report["outcome"]["verdict"], "failed");
+    for file in ["points.ply", "height_map.csv", "height_map.png"] {
+        assert_eq!(
+            report["outputs"]["failed"][file], unfinished,
+            "{file}: {}",
+            report["outputs"]["failed"]
+        );
+    }
+    // The loop's part of it is whole: every period ran, its recordings are complete.
+    assert_eq!(report["periods"]["done"], report["periods"]["planned"]);
+}
+
+#[test]
+fn sigterm_during_imaging_leaves_a_report_that_says_the_imaging_did_not_finish() {
+    interrupt_imaging_with("TERM");
+}
+
+#[test]
+fn ctrl_c_during_imaging_leaves_a_report_that_says_the_imaging_did_not_finish() {
+    interrupt_imaging_with("INT");
+}

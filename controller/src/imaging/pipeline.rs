@@ -351,6 +351,17 @@ pub const PROFILES_SVG: &str = "profiles.svg";
 /// The sections' cells and true heights.
 pub const PROFILES_CSV: &str = "profiles.csv";
 
+/// Every file [`write_outputs`] writes.
+pub const IMAGING_OUTPUTS: [&str; 7] = [
+    POINTS_PLY,
+    HEIGHT_MAP_PNG,
+    HEIGHT_MAP_CSV,
+    PROGRESSIVE_SVG,
+    SNAPSHOTS_PNG,
+    PROFILES_SVG,
+    PROFILES_CSV,
+];
+
 impl ImagingReport {
     /// What the map's heights are, for a caption: `z_s (mm)` or `height above the base
     /// plane (mm)`.

@@ -37,7 +37,10 @@ use super::tracking::{PlotPoint, TrackingSummary};
 use super::verdict::{PlantDeclares, RunFigures, SensorFigures, Status, judge};
 use super::{ScanEnd, ScanResult};
 use crate::imaging::grid::GridMethod;
-use crate::imaging::pipeline::{ImagingOptions, image_points, reconstruct_samples, write_outputs};
+use crate::imaging::pipeline::{
+    IMAGING_OUTPUTS, ImagingOptions, ImagingReport, image_points, reconstruct_samples,
+    write_outputs,
+};
 use crate::imaging::ply::PlyEncoding;
 use crate::imaging::progressive::ScanFrame;
 use crate::steady_state::PredictedTracking;
@@ -153,6 +156,137 @@ pub fn write(
         samples.filter_map(|sample| pairing.pair(sample.counter, sample.value)),
         &options,
     );
+    let tracking = record.tracking.summary();
+    failed.attempt(
+        TRACKING_SVG,
+        write_tracking_plot(record, &tracking, plan, out_dir),
+    );
+    let end = ScanEnd::of(record);
+    // No prediction is compared where none applies: a scene without dynamics.
+    let predicted = match run.plant.dynamics {
+        Some(false) => None,
+        _ => Some(plan.predicted_tracking),
+    };
+    let unpredicted = PredictedTracking {
+        alpha_rms_relative: None,
+        beta_rms_relative: None,
+    };
+    let [alpha, beta] =
+        RunFigures::axes(&tracking.frame, predicted.as_ref().unwrap_or(&unpredicted));
+    // Real time: the emulator's list of missed deadlines becomes their attribution.
+    let mut emulator = run.emulator_summary.clone();
+    let verdicts = match (&record.controller_timing, emulator.as_mut()) {
+        (Some(controller), Some(emulator)) => super::controller_timing::verdicts(
+            controller,
+            &mut emulator["summary"]["timing"],
+            period_s,
+        ),
+        _ => serde_json::Value::Null,
+    };
+    // The report and its verdict for an imaging (or its error) and the outputs not written.
+    let report_with = |imaging: Option<&ImagingReport>,
+                       imaging_error: Option<String>,
+                       failed: &OutputFailures| {
+        let verdict = judge(&RunFigures {
+            stopped_by: record.stopped_by.as_ref().map(ToString::to_string),
+            frame_periods: tracking.frame.periods,
+            alpha,
+            beta,
+            plant: run.plant,
+            sensor: rig.sensor.map(|_| SensorFigures {
+                samples: sensor_samples as u64,
+                paired_with_distance: pairing.with_distance as u64,
+            }),
+            imaging_error: imaging_error.clone(),
+        });
+        let figures = scenario.trajectory.figures(imaging.map(|m| {
+            (
+                m.grid.nx as f64 * m.grid.pitch_mm,
+                m.grid.ny as f64 * m.grid.pitch_mm,
+            )
+        }));
+        let report = serde_json::json!({
+            "scenario": {
+                "name": scenario.name,
+                "file": scenario.path.display().to_string(),
+                "scene": scenario.scene.as_ref().map(|p| p.display().to_string()),
+                "truth": scenario.truth_scene().map(|p| p.display().to_string()),
+                "controller": scenario.controller.display().to_string(),
+                "seed": scenario.seed,
+                "duration_s": scenario.duration_s,
+                "timing": scenario.timing,
+                "links": scenario.links,
+            },
+            "rig": rig.to_json(),
+            "outcome": {
+                "complete": verdict.status == Status::Complete,
+                "verdict": verdict.status,
+                "stopped_by": record.stopped_by.as_ref().map(ToString::to_string),
+                "reasons": verdict.reasons,
+                "notes": verdict.notes,
+                "tracking_limits": verdict.tracking_limits,
+            },
+            "coils_at_end": coils_at_end(record, run.emulator_summary.as_ref()),
+            "run_time_s": run.run_time_s,
+            "periods": {
+                "planned": record.periods_planned,
+                "done": record.periods_done,
+                "period_s": record.period_s,
+                "saturated": record.saturated_periods,
+                "saturated_in_frame": record.saturated_in_frame(),
+                "planned_saturated_share": plan.planned_saturated_share,
+            },
+            "timing": {
+                "mode": scenario.timing.mode,
+                "controller": record.controller_timing,
+                "emulator": emulator.as_ref().map(|e| e["summary"]["timing"].clone()),
+                "deadline_misses": verdicts["deadline_misses"],
+                "jitter_against_probe": verdicts["jitter_against_probe"],
+            },
+            "frame": {
+                "start_s": frame.start_s,
+                "duration_s": frame.length_s,
+                "lead_in": plan.lead_in,
+            },
+            "tracking_error": tracking,
+            "predicted_tracking_error": predicted,
+            "sensor_setup": run.sensor_setup,
+            "power": { "check": plan.power, "backoff": record.power_backoff },
+            "trajectory": figures,
+            "samples": {
+                "sensor_samples": sensor_samples,
+                "paired": pairing.paired,
+                "in_the_lead_in": pairing.in_lead_in,
+                "outside_the_angle_record": pairing.unpaired,
+                "sensor_clock": clock,
+            },
+            "imaging": imaging,
+            "imaging_error": imaging_error,
+            "links": {
+                "mirror": run.mirror_counters,
+                "mirror_link": run.mirror_link,
+                "sensor": sensor_counters,
+                "node_events": run.node_events,
+            },
+            "faults": scenario.faults.is_active().then(|| fault_report(scenario, run, &sensor_counters, &sensor_errors)),
+            "emulator": emulator,
+            "outputs": { "failed": &failed },
+        });
+        (report, verdict)
+    };
+    // Imaging takes seconds to minutes: a report is written before it, saying it did not
+    // finish, so a signal or a crash meanwhile (the loop's handlers are gone by now) still
+    // leaves one; the report after it replaces this one.
+    if pairing.with_distance > 0 {
+        let unfinished = "the run ended while its points were imaged";
+        let mut not_written = failed.clone();
+        for file in IMAGING_OUTPUTS {
+            not_written.add(file, unfinished.to_owned());
+        }
+        let (report, _) = report_with(None, Some(unfinished.to_owned()), &not_written);
+        // A failure here is the final report's to say.
+        let _ = write_report(&report, out_dir);
+    }
     let imaging = if pairing.with_distance > 0 {
         image_and_write(
             scenario,
@@ -178,128 +312,24 @@ pub fn write(
             failed.add(file, why.clone());
         }
     }
-    let tracking = record.tracking.summary();
-    failed.attempt(
-        TRACKING_SVG,
-        write_tracking_plot(record, &tracking, plan, out_dir),
-    );
-    let end = ScanEnd::of(record);
-    // No prediction is compared where none applies: a scene without dynamics.
-    let predicted = match run.plant.dynamics {
-        Some(false) => None,
-        _ => Some(plan.predicted_tracking),
-    };
-    let unpredicted = PredictedTracking {
-        alpha_rms_relative: None,
-        beta_rms_relative: None,
-    };
-    let [alpha, beta] =
-        RunFigures::axes(&tracking.frame, predicted.as_ref().unwrap_or(&unpredicted));
-    let verdict = judge(&RunFigures {
-        stopped_by: record.stopped_by.as_ref().map(ToString::to_string),
-        frame_periods: tracking.frame.periods,
-        alpha,
-        beta,
-        plant: run.plant,
-        sensor: rig.sensor.map(|_| SensorFigures {
-            samples: sensor_samples as u64,
-            paired_with_distance: pairing.with_distance as u64,
-        }),
-        imaging_error: imaging_error.clone(),
-    });
-    let figures = scenario.trajectory.figures(imaging.as_ref().map(|m| {
-        (
-            m.grid.nx as f64 * m.grid.pitch_mm,
-            m.grid.ny as f64 * m.grid.pitch_mm,
-        )
-    }));
-    // Real time: the emulator's list of missed deadlines becomes their attribution.
-    let mut emulator = run.emulator_summary.clone();
-    let verdicts = match (&record.controller_timing, emulator.as_mut()) {
-        (Some(controller), Some(emulator)) => super::controller_timing::verdicts(
-            controller,
-            &mut emulator["summary"]["timing"],
-            period_s,
-        ),
-        _ => serde_json::Value::Null,
-    };
-    let report = serde_json::json!({
-        "scenario": {
-            "name": scenario.name,
-            "file": scenario.path.display().to_string(),
-            "scene": scenario.scene.as_ref().map(|p| p.display().to_string()),
-            "truth": scenario.truth_scene().map(|p| p.display().to_string()),
-            "controller": scenario.controller.display().to_string(),
-            "seed": scenario.seed,
-            "duration_s": scenario.duration_s,
-            "timing": scenario.timing,
-            "links": scenario.links,
-        },
-        "rig": rig.to_json(),
-        "outcome": {
-            "complete": verdict.status == Status::Complete,
-            "verdict": verdict.status,
-            "stopped_by": record.stopped_by.as_ref().map(ToString::to_string),
-            "reasons": verdict.reasons,
-            "notes": verdict.notes,
-            "tracking_limits": verdict.tracking_limits,
-        },
-        "coils_at_end": coils_at_end(record, run.emulator_summary.as_ref()),
-        "run_time_s": run.run_time_s,
-        "periods": {
-            "planned": record.periods_planned,
-            "done": record.periods_done,
-            "period_s": record.period_s,
-            "saturated": record.saturated_periods,
-            "saturated_in_frame": record.saturated_in_frame(),
-            "planned_saturated_share": plan.planned_saturated_share,
-        },
-        "timing": {
-            "mode": scenario.timing.mode,
-            "controller": record.controller_timing,
-            "emulator": emulator.as_ref().map(|e| e["summary"]["timing"].clone()),
-            "deadline_misses": verdicts["deadline_misses"],
-            "jitter_against_probe": verdicts["jitter_against_probe"],
-        },
-        "frame": {
-            "start_s": frame.start_s,
-            "duration_s": frame.length_s,
-            "lead_in": plan.lead_in,
-        },
-        "tracking_error": tracking,
-        "predicted_tracking_error": predicted,
-        "sensor_setup": run.sensor_setup,
-        "power": { "check": plan.power, "backoff": record.power_backoff },
-        "trajectory": figures,
-        "samples": {
-            "sensor_samples": sensor_samples,
-            "paired": pairing.paired,
-            "in_the_lead_in": pairing.in_lead_in,
-            "outside_the_angle_record": pairing.unpaired,
-            "sensor_clock": clock,
-        },
-        "imaging": imaging,
-        "imaging_error": imaging_error,
-        "links": {
-            "mirror": run.mirror_counters,
-            "mirror_link": run.mirror_link,
-            "sensor": sensor_counters,
-            "node_events": run.node_events,
-        },
-        "faults": scenario.faults.is_active().then(|| fault_report(scenario, run, &sensor_counters, &sensor_errors)),
-        "emulator": emulator,
-        "outputs": { "failed": &failed },
-    });
-    let text = serde_json::to_string_pretty(&report).context("formatting report.json")?;
-    let path = out_dir.join(REPORT);
-    let written = scanhil_protocol::whole_file::write_file(&path, text + "\n")
-        .with_context(|| format!("writing {}", path.display()));
-    failed.attempt(REPORT, written);
+    let (report, verdict) = report_with(imaging.as_ref(), imaging_error, &failed);
+    failed.attempt(REPORT, write_report(&report, out_dir));
     Ok(ScanResult {
         end,
         verdict,
         failed_outputs: failed,
     })
+}
+
+/// Writes `report` as `out_dir`'s report.json, whole or not at all.
+///
+/// # Errors
+/// The formatting or the write, naming the file.
+fn write_report(report: &serde_json::Value, out_dir: &Path) -> anyhow::Result<()> {
+    let text = serde_json::to_string_pretty(report).context("formatting report.json")?;
+    let path = out_dir.join(REPORT);
+    scanhil_protocol::whole_file::write_file(&path, text + "\n")
+        .with_context(|| format!("writing {}", path.display()))
 }
 
 /// `report.json` `coils_at_end`: the zero command the run ended with and whether the node
