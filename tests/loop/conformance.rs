@@ -436,3 +436,51 @@ fn an_unknown_or_unsafe_check_is_refused_before_any_link_opens() {
         assert!(!stderr.contains("nonexistent"), "{stderr}");
     }
 }
+
+#[test]
+fn a_conformance_run_interrupted_keeps_its_results_and_says_it_ended_early() {
+    let out = tempfile::tempdir().expect("a temporary folder");
+    let junit = out.path().join("conformance.xml");
+    // The link-timeout check waits out 200 answer allowances of silence (2 s): the signal
+    // comes during it, once the checks before it are in the JUnit file.
+    let child = std::process::Command::new(crate::util::scanhil())
+        .args([
+            "conformance",
+            "--fsm",
+            "pty",
+            "--scene",
+            &fixture("scenes/loop-fast.json"),
+            "--watchdog-periods",
+            "200",
+            "--junit",
+            junit.to_str().expect("UTF-8 path"),
+        ])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("starting scanhil");
+    let started = std::time::Instant::now();
+    while !std::fs::read_to_string(&junit)
+        .is_ok_and(|xml| xml.contains("survives_garbage_slcan_lines"))
+    {
+        assert!(
+            started.elapsed() < Duration::from_secs(60),
+            "the checks before the link timeout never reached the JUnit file"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    crate::util::signal(child.id(), "INT");
+    let output = crate::util::exits_within(child, Duration::from_secs(30), "conformance");
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    assert_eq!(output.status.code(), Some(1), "{stdout}");
+    let xml = std::fs::read_to_string(&junit).expect("JUnit XML written");
+    for written in [&*stdout, &xml] {
+        assert!(written.contains("run_ended_early"), "{written}");
+        assert!(written.contains("interrupted by SIGINT"), "{written}");
+        assert!(
+            written.contains("survives_garbage_slcan_lines"),
+            "{written}"
+        );
+        assert!(!written.contains("link_timeout_fault"), "{written}");
+    }
+}

@@ -8,7 +8,10 @@ use std::process::ExitCode;
 
 use anyhow::Context;
 use scanhil_controller::run::check_selection::Selection;
-use scanhil_controller::run::conformance::{Outcome, junit_xml, run_checks, table};
+use scanhil_controller::run::conformance::{
+    CheckResult, Outcome, ended_early, junit_xml, run_checks, table,
+};
+use scanhil_controller::run::interrupt::Interrupt;
 use scanhil_controller::run::scenario::{NodeLink, TimingConfig};
 use scanhil_controller::run::{LinkPlan, finish_emulator, open_links};
 use scanhil_protocol::loop_limits;
@@ -116,22 +119,50 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         .enable_all()
         .build()
         .context("starting the I/O runtime")?;
-    let results = runtime.block_on(async {
+    let junit = args.junit.clone();
+    // The JUnit file is written whole after every result, so a run cut short keeps its rows.
+    let write_junit = |results: &[CheckResult]| -> anyhow::Result<()> {
+        match &junit {
+            Some(path) => scanhil_protocol::whole_file::write_file(path, junit_xml(results))
+                .with_context(|| format!("writing {}", path.display())),
+            None => Ok(()),
+        }
+    };
+    let mut junit_error = None;
+    let mut results = Vec::new();
+    runtime.block_on(async {
         let mut links = open_links(&plan).await?;
+        let mut interrupt =
+            Interrupt::install().context("installing the signal handlers")?;
         let sensor = plan.sensor.is_some().then_some(&mut links.sensor);
-        let results = run_checks(&mut links.mirror, sensor, &selection).await;
+        let mut on_result = |so_far: &[CheckResult]| {
+            if let Err(error) = write_junit(so_far) {
+                junit_error.get_or_insert(error);
+            }
+        };
+        let signal = tokio::select! {
+            () = run_checks(&mut links.mirror, sensor, &selection, &mut results, &mut on_result) => None,
+            signal = interrupt.recv() => Some(signal),
+        };
+        if let Some(signal) = signal {
+            // Cut short mid-check: the node is given its zero command and its session ended.
+            let period = links.mirror.counters().angle_readings;
+            let _ = links.mirror.end_session(period).await;
+            results.push(ended_early(signal));
+            on_result(&results);
+        }
+        interrupt.restore_default();
         // `C` on SLCAN, so a real adapter is not left open; a node already gone is fine.
         let _ = links.mirror.close().await;
         drop(links.mirror);
         if let Some(process) = links.emulator {
             finish_emulator(process, links.emulator_lines).await?;
         }
-        anyhow::Ok(results)
+        anyhow::Ok(())
     })?;
     scanhil_protocol::outln!("{}", table(&results))?;
-    if let Some(path) = &args.junit {
-        scanhil_protocol::whole_file::write_file(path, junit_xml(&results))
-            .with_context(|| format!("writing {}", path.display()))?;
+    if let Some(error) = junit_error {
+        return Err(error);
     }
     // A run in which no check ran (all skipped, or none applied to these links) did nothing.
     let ran = results.iter().any(|r| r.outcome != Outcome::Skipped);

@@ -126,7 +126,9 @@ impl CheckResult {
 /// out for the bench's safety as skipped.
 struct Verdicts<'a> {
     selection: &'a Selection,
-    results: Vec<CheckResult>,
+    results: &'a mut Vec<CheckResult>,
+    /// Told of the results after each one (the caller writes them as they come).
+    on_result: &'a mut dyn FnMut(&[CheckResult]),
 }
 
 impl Verdicts<'_> {
@@ -168,6 +170,7 @@ impl Verdicts<'_> {
             detail,
             time_s,
         });
+        (self.on_result)(self.results);
     }
 }
 
@@ -213,15 +216,36 @@ impl std::fmt::Display for Excitation {
     }
 }
 
-/// Runs the mirror node's checks and, when given, the sensor's, as `selection` says.
+/// The row of a run stopped by `signal` before its checks were done: failed, so a run cut
+/// short never passes.
+#[must_use]
+pub fn ended_early(signal: &str) -> CheckResult {
+    CheckResult {
+        name: RUN_ENDED_EARLY,
+        node: "-",
+        outcome: Outcome::Failed,
+        detail: format!("interrupted by {signal}: the checks after the rows above did not run"),
+        time_s: 0.0,
+    }
+}
+
+/// The name of [`ended_early`]'s row.
+pub const RUN_ENDED_EARLY: &str = "run_ended_early";
+
+/// Runs the mirror node's checks and, when given, the sensor's, as `selection` says. Each
+/// result is pushed onto `results` as it is known, and `on_result` told of them all then (the
+/// caller writes them as they come: a run cut short keeps what it found).
 pub async fn run_checks(
     mirror: &mut MirrorLink,
     mut sensor: Option<&mut SensorLink>,
     selection: &Selection,
-) -> Vec<CheckResult> {
+    results: &mut Vec<CheckResult>,
+    on_result: &mut dyn FnMut(&[CheckResult]),
+) {
     let mut verdicts = Verdicts {
         selection,
-        results: Vec::new(),
+        results,
+        on_result,
     };
     let mut k = 0u64;
     // Timing, sequence, range, status (and the sensor stream alongside), under the drive.
@@ -347,7 +371,6 @@ pub async fn run_checks(
         // The node is still in its session: the zero command it acknowledges ends it.
         let _ = mirror.end_session(k).await;
     }
-    verdicts.results
 }
 
 /// `over_current_fault` from period `k`: [`OVER_CURRENT_PERIODS`] periods at
