@@ -8,7 +8,7 @@
 //! | `tracking.svg` | reference and measured angles, and the tracking error, over time |
 //! | `progressive.svg` | coverage, and the error against the true surface when one is known, against scan time |
 //! | `snapshots.png`, `profiles.svg`, `profiles.csv` | the map after 10/25/50/100 % of the frame (Fig. 6); sections along x and y through the feature against the truth (Fig. 10) |
-//! | `fsm.log` | every frame on the mirror link, candump `-L` format, loop-time stamps |
+//! | `fsm.log` | every frame on the mirror link, candump `-L` format, loop-time stamps on interface `fsm` (the scenario's `recording` section: Unix-time stamps, another interface name) |
 //! | `sensor.ild` | every byte of the ILD stream, raw (`scanhil decode --format ild`) |
 //!
 //! A file that cannot be written does not stop the others ([`super::output_failures`]):
@@ -44,8 +44,6 @@ use crate::steady_state::PredictedTracking;
 
 /// The mirror link's candump log.
 pub const FSM_LOG: &str = "fsm.log";
-/// The interface name in the candump log, the same on every transport so recordings compare.
-pub const FSM_INTERFACE: &str = "fsm";
 /// The ILD stream's raw capture.
 pub const SENSOR_CAPTURE: &str = "sensor.ild";
 /// The run report.
@@ -234,6 +232,7 @@ pub fn write(
             "duration_s": scenario.duration_s,
             "timing": scenario.timing,
             "links": scenario.links,
+            "recording": scenario.recording,
         },
         "rig": rig.to_json(),
         "outcome": {
