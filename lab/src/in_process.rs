@@ -26,7 +26,7 @@ use scanhil_controller::run::output::{self, RunData};
 use scanhil_controller::run::output_failures::OutputFailures;
 use scanhil_controller::run::pairing::SensorClock;
 use scanhil_controller::run::plan::{PlanSummary, ScanPlan};
-use scanhil_controller::run::scenario::{NodeLink, Scenario, TimingMode};
+use scanhil_controller::run::scenario::{DEFAULT_RECORDING_IFACE, NodeLink, Scenario, TimingMode};
 use scanhil_controller::run::sensor_link::{IldSampleDecoder, SampleLayout};
 use scanhil_controller::run::sensor_setup::SensorSetupReport;
 use scanhil_controller::run::verdict::{PlantDeclares, Verdict};
@@ -402,7 +402,7 @@ impl Transport {
                     File::create(&path).with_context(|| format!("creating {}", path.display()))?;
                 anyhow::Ok(CanCapture::new(
                     file,
-                    output::FSM_INTERFACE,
+                    DEFAULT_RECORDING_IFACE,
                     CaptureClock::Virtual(clock.clone()),
                 ))
             })

@@ -15,6 +15,7 @@
 //!   bit flip), seeded and deterministic, with a ledger of every frame.
 //! - [`dbc`]: the DBC file rendered from the message table (`protocol/scanhil.dbc`).
 //! - [`ild`]: the ILD 2300 sensor: RS422 values, the L/M/H byte stream, ASCII commands.
+//! - [`interface_name`]: Linux network interface names, as the kernel accepts them.
 //! - [`error_text`]: an error and its causes on one line, each said once (the programs'
 //!   error line).
 //! - [`loop_timing`]: period jitter and overruns of a real-time loop, as both ends report them.
@@ -34,6 +35,7 @@ pub mod dbc;
 pub mod error_text;
 pub mod fault_injection;
 pub mod ild;
+pub mod interface_name;
 #[cfg(feature = "links")]
 pub mod link;
 pub mod loop_limits;

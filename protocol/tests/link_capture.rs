@@ -25,6 +25,54 @@ fn can_capture_writes_candump_lines_at_virtual_time() {
     assert_eq!(text, "(1.000050) fsm 110#DEAD\n");
 }
 
+/// `--record-epoch`: the loop's time after the run's start on the wall clock, so the stamps
+/// are Unix times and stay exactly the loop's periods apart.
+#[test]
+fn an_epoch_capture_adds_the_virtual_time_to_its_start() {
+    let out = SharedBuffer::default();
+    let clock = VirtualClock::default();
+    let start = Duration::new(1_764_700_000, 999_990_000);
+    let mut capture = CanCapture::new(
+        out.clone(),
+        "can0",
+        CaptureClock::VirtualSinceEpoch {
+            start,
+            clock: clock.clone(),
+        },
+    );
+    for period in [0, 1, 2] {
+        clock.set(Duration::from_micros(50 * period));
+        capture.record(&frame()).unwrap();
+    }
+    capture.flush().unwrap();
+    assert_eq!(
+        String::from_utf8(out.bytes()).unwrap(),
+        "(1764700000.999990) can0 110#0102030405060708\n\
+         (1764700001.000040) can0 110#0102030405060708\n\
+         (1764700001.000090) can0 110#0102030405060708\n"
+    );
+}
+
+/// [`CaptureClock::since_now`] starts at the wall clock's present reading.
+#[test]
+fn since_now_starts_at_the_wall_clock() {
+    let before = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap();
+    let CaptureClock::VirtualSinceEpoch { start, .. } =
+        CaptureClock::since_now(VirtualClock::default())
+    else {
+        panic!("not an epoch clock");
+    };
+    let after = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap();
+    assert!(
+        before <= start && start <= after,
+        "{before:?} {start:?} {after:?}"
+    );
+}
+
 fn frame() -> CanFrame {
     CanFrame::new(CanId::standard(0x110).unwrap(), &[1, 2, 3, 4, 5, 6, 7, 8]).unwrap()
 }

@@ -59,3 +59,5 @@ mod bad_input;
 mod verdicts;
 // Outputs that cannot be written (a full disk, a directory in the way): the others are.
 mod output_failures;
+// Recordings for a technician's tools: Unix-time stamps and a real interface name, decoded.
+mod recordings;

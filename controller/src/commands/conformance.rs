@@ -113,6 +113,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         period_s: 1.0 / args.rate_hz,
         duration_s: 0.0,
         record_dir: None,
+        recording: Default::default(),
         sensor_expectation: None,
     };
     let runtime = tokio::runtime::Builder::new_current_thread()

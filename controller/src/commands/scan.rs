@@ -70,6 +70,14 @@ pub struct Args {
     /// of the scenario's `timing.emulator_ready_s` (default 20; the probe comes on top).
     #[arg(long, allow_negative_numbers = true)]
     emulator_ready_s: Option<f64>,
+    /// Lockstep: stamp `fsm.log` with Unix times (the loop's start on the wall clock plus the
+    /// loop's time) instead of the loop's time from zero, as `log2asc` and `canplayer` expect.
+    #[arg(long)]
+    record_epoch: bool,
+    /// The interface name each line of `fsm.log` carries instead of the scenario's (`fsm`),
+    /// e.g. `can0`, so `canplayer -I fsm.log` replays it there.
+    #[arg(long, value_name = "IFACE")]
+    record_iface: Option<String>,
 }
 
 /// The timing modes on the command line.
@@ -107,6 +115,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         sched_fifo_priority: args.sched_fifo_priority,
         probe_s: args.probe_s,
         emulator_ready_s: args.emulator_ready_s,
+        record_epoch: args.record_epoch,
+        record_iface: args.record_iface,
     };
     // A scenario error names its file already; anything else gets the scan's name.
     let result = run_scan(&scenario, &options).map_err(|error| {

@@ -136,6 +136,10 @@ pub struct ScanOptions {
     pub probe_s: Option<f64>,
     /// Overrides how long a started emulator may take to become ready, s.
     pub emulator_ready_s: Option<f64>,
+    /// Stamps the recording with Unix times (only ever turns it on).
+    pub record_epoch: bool,
+    /// Overrides the scenario's recording interface name.
+    pub record_iface: Option<String>,
 }
 
 impl ScanOptions {
@@ -181,6 +185,10 @@ impl ScanOptions {
         timing.sched_fifo_priority = self.sched_fifo_priority.or(timing.sched_fifo_priority);
         timing.probe_s = self.probe_s.unwrap_or(timing.probe_s);
         timing.emulator_ready_s = self.emulator_ready_s.unwrap_or(timing.emulator_ready_s);
+        scenario.recording.epoch |= self.record_epoch;
+        if let Some(iface) = &self.record_iface {
+            scenario.recording.iface.clone_from(iface);
+        }
         scenario
             .check_values()
             .map_err(|invalid| match self.flag_of(&invalid.field) {
@@ -217,6 +225,7 @@ impl ScanOptions {
             "timing.emulator_ready_s" => {
                 given(self.emulator_ready_s.is_some(), "--emulator-ready-s")
             }
+            "recording.iface" => given(self.record_iface.is_some(), "--record-iface"),
             "scene" | "faults.sensor" => given(
                 self.fsm.is_some() || self.sensor.is_some() || self.no_emulator,
                 "--fsm/--sensor/--no-emulator",
@@ -338,6 +347,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             period_s,
             duration_s: periods as f64 * period_s,
             record_dir: Some(out_dir.clone()),
+            recording: scenario.recording.clone(),
             sensor_expectation: rig.sensor,
         };
         let mut links = open_links(&plan).await?;
@@ -508,6 +518,8 @@ pub struct LinkPlan {
     pub duration_s: f64,
     /// Record the links into this folder (`fsm.log`, `sensor.ild`).
     pub record_dir: Option<PathBuf>,
+    /// How `fsm.log` is stamped and which interface it names.
+    pub recording: scenario::RecordingConfig,
     /// The rig's sensor: configured and read back before the run, and an emulator started here
     /// must serve it at its rate (`None`: left as it is, not checked).
     pub sensor_expectation: Option<crate::rig::RigSensor>,
@@ -673,12 +685,15 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
     let mut recordings = Vec::new();
     let mut recording_failures = OutputFailures::default();
     if let Some(dir) = &plan.record_dir {
-        let capture_clock = clock
-            .clone()
-            .map_or(CaptureClock::Wall, CaptureClock::Virtual);
+        // Virtual time zero is now, when the loop is about to start.
+        let capture_clock = match (clock.clone(), plan.recording.epoch) {
+            (None, _) => CaptureClock::Wall,
+            (Some(clock), false) => CaptureClock::Virtual(clock),
+            (Some(clock), true) => CaptureClock::since_now(clock),
+        };
         let fsm_log = RecordingFile::create(dir, output::FSM_LOG);
         if let Some((log, failure)) = recording_failures.attempt(output::FSM_LOG, fsm_log) {
-            fsm.set_capture(CanCapture::new(log, output::FSM_INTERFACE, capture_clock));
+            fsm.set_capture(CanCapture::new(log, &plan.recording.iface, capture_clock));
             recordings.push(failure);
         }
         if matches!(sensor, SensorLink::Ild(_)) {

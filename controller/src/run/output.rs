@@ -216,6 +216,7 @@ pub fn write(
                 "duration_s": scenario.duration_s,
                 "timing": scenario.timing,
                 "links": scenario.links,
+                "recording": scenario.recording,
             },
             "rig": rig.to_json(),
             "outcome": {

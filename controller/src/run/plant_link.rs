@@ -74,6 +74,7 @@ impl LinkedPlant {
             period_s,
             duration_s: 0.0,
             record_dir: record_dir.map(Path::to_owned),
+            recording: Default::default(),
             sensor_expectation: None,
         };
         let links = runtime.block_on(open_links(&plan))?;

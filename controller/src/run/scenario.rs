@@ -13,9 +13,9 @@
 use std::path::{Path, PathBuf};
 
 use scanhil_geometry::GeometryModel;
-use scanhil_protocol::loop_limits;
 use scanhil_protocol::scheduling::{self, RealtimeOptions};
 use scanhil_protocol::validation::{Allowed, Invalid, InvalidValue};
+use scanhil_protocol::{interface_name, loop_limits};
 use serde::{Deserialize, Serialize};
 
 use super::lead_in::LeadIn;
@@ -65,6 +65,8 @@ pub struct Scenario {
     pub lead_in: LeadIn,
     /// Injected faults ([`super::link_faults`]; none by default).
     pub faults: FaultsConfig,
+    /// How the mirror link's recording is stamped and named.
+    pub recording: RecordingConfig,
 }
 
 /// How the loop is clocked.
@@ -272,6 +274,45 @@ impl Default for LinksConfig {
     }
 }
 
+/// The `recording` section: how `fsm.log` (the mirror link's candump `-L` recording) is
+/// stamped and which interface its lines name, for the tools a technician replays it with
+/// (`canplayer`, `log2asc`). The defaults keep recordings of the same seed bit-identical on
+/// every transport.
+#[derive(Debug, Clone, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RecordingConfig {
+    /// Lockstep: stamp each frame with a Unix time (the wall clock when the loop started plus
+    /// the loop's time) instead of the loop's time from zero (`--record-epoch`). A real-time
+    /// loop's stamps are the wall clock's either way.
+    pub epoch: bool,
+    /// The interface name each line carries (`--record-iface`), a Linux interface name.
+    pub iface: String,
+}
+
+impl Default for RecordingConfig {
+    fn default() -> RecordingConfig {
+        RecordingConfig {
+            epoch: false,
+            iface: DEFAULT_RECORDING_IFACE.to_owned(),
+        }
+    }
+}
+
+/// The interface name recordings carry by default, the same on every transport so that
+/// recordings compare.
+pub const DEFAULT_RECORDING_IFACE: &str = "fsm";
+
+impl RecordingConfig {
+    /// Checks the interface name against the kernel's rule ([`interface_name::check`]).
+    ///
+    /// # Errors
+    /// `recording.iface` with why the name is no interface name.
+    pub fn check(&self) -> Result<(), Invalid> {
+        interface_name::check(&self.iface)
+            .map_err(|error| Invalid::new("recording.iface", error.to_string()))
+    }
+}
+
 /// What to do with a trajectory whose estimate is over `margin x limit`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -395,6 +436,8 @@ struct ScenarioFile {
     lead_in: LeadIn,
     #[serde(default)]
     faults: FaultsConfig,
+    #[serde(default)]
+    recording: RecordingConfig,
 }
 
 impl Scenario {
@@ -434,6 +477,7 @@ impl Scenario {
             power: file.power,
             lead_in: file.lead_in,
             faults: file.faults,
+            recording: file.recording,
         };
         scenario.check()?;
         Ok(scenario)
@@ -485,6 +529,7 @@ impl Scenario {
         self.faults
             .check()
             .map_err(|error| Invalid::new(error.field, error.reason))?;
+        self.recording.check()?;
         let links_are_emulated = self.links.spawn_emulator
             || self.links.fsm == NodeLink::Pty
             || self.links.sensor == NodeLink::Pty;
@@ -579,6 +624,40 @@ mod tests {
             error.to_string().ends_with(
                 "duplo-lissajous-dual-tone.json: field `imaging.feature`: plane_region: \
                  x_min_mm 5 is above x_max_mm -5"
+            ),
+            "{error}"
+        );
+    }
+
+    #[test]
+    fn a_recording_interface_that_is_no_interface_name_is_refused_with_the_file_and_field() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../fixtures/scenarios/duplo-lissajous-dual-tone.json");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let with = |recording: &str| {
+            let edited = text.replacen('{', &format!("{{ \"recording\": {recording},"), 1);
+            Scenario::from_json_str(&edited, &path)
+        };
+        let scenario = with(r#"{ "epoch": true, "iface": "can0" }"#).unwrap();
+        assert_eq!(
+            scenario.recording,
+            RecordingConfig {
+                epoch: true,
+                iface: "can0".into()
+            }
+        );
+        assert_eq!(
+            Scenario::from_json_str(&text, &path).unwrap().recording,
+            RecordingConfig {
+                epoch: false,
+                iface: "fsm".into()
+            }
+        );
+        let error = with(r#"{ "iface": "can 0" }"#).unwrap_err().to_string();
+        assert!(
+            error.ends_with(
+                "duplo-lissajous-dual-tone.json: field `recording.iface`: interface name \
+                 `can 0` contains ' ' at byte 3 (no `/`, `:` or white space)"
             ),
             "{error}"
         );

@@ -11,7 +11,9 @@
 //!
 //! Timestamps come from a [`CaptureClock`]: the wall clock in real time, or a
 //! [`VirtualClock`] the loop sets to `k * Ta` every period in lockstep, so the same seed gives
-//! bit-identical recordings on every transport.
+//! bit-identical recordings on every transport; or, for tools that want Unix times
+//! (`log2asc`, `canplayer`), that virtual time added to the wall clock's reading when the run
+//! started ([`CaptureClock::VirtualSinceEpoch`]): epoch stamps, still `Ta` apart.
 
 use std::io::{self, Write};
 use std::sync::Arc;
@@ -93,21 +95,45 @@ pub enum CaptureClock {
     Wall,
     /// The loop's virtual time.
     Virtual(VirtualClock),
+    /// The loop's virtual time after `start`, a time since the Unix epoch (the wall clock
+    /// when the run started, [`CaptureClock::since_now`]).
+    VirtualSinceEpoch {
+        /// The Unix time virtual time zero stands for.
+        start: Duration,
+        /// The loop's virtual time.
+        clock: VirtualClock,
+    },
 }
 
 impl CaptureClock {
+    /// The loop's virtual time `clock` stamped as Unix times from now on: virtual time zero is
+    /// the wall clock's present reading.
+    #[must_use]
+    pub fn since_now(clock: VirtualClock) -> CaptureClock {
+        CaptureClock::VirtualSinceEpoch {
+            start: wall_since_epoch(),
+            clock,
+        }
+    }
+
     fn timestamp(&self) -> Timestamp {
         let since_epoch = match self {
-            CaptureClock::Wall => SystemTime::now()
-                .duration_since(UNIX_EPOCH)
-                .unwrap_or_default(),
+            CaptureClock::Wall => wall_since_epoch(),
             CaptureClock::Virtual(clock) => clock.now(),
+            CaptureClock::VirtualSinceEpoch { start, clock } => start.saturating_add(clock.now()),
         };
         Timestamp {
             secs: since_epoch.as_secs(),
             nanos: since_epoch.subsec_nanos(),
         }
     }
+}
+
+/// The wall clock's time since the Unix epoch (zero for a clock set before 1970).
+fn wall_since_epoch() -> Duration {
+    SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .unwrap_or_default()
 }
 
 /// Records every CAN frame sent or received on a link as a candump `-L` line.

@@ -13,13 +13,12 @@ use std::path::PathBuf;
 use std::str::FromStr;
 
 use crate::ild::stream::FACTORY_BAUD as ILD_DEFAULT_BAUD;
+use crate::interface_name::{self, InterfaceNameError};
 use crate::slcan::family::AdapterFamily;
 
 /// The serial baud rate used on an SLCAN line. USB adapters (CANable, ttyACM) and ptys ignore
 /// it; a UART adapter needing another rate is reconfigured with `stty` before use.
 pub const SLCAN_SERIAL_BAUD: u32 = 115_200;
-/// Longest Linux network interface name (IFNAMSIZ - 1).
-const IFACE_MAX_LEN: usize = 15;
 
 /// A parsed link URI.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -150,17 +149,12 @@ impl FromStr for LinkUri {
             .transpose()?;
         match scheme {
             "socketcan" => {
-                if target.len() > IFACE_MAX_LEN {
-                    return Err(fail(
-                        body_at,
-                        format!("interface name `{target}` is longer than {IFACE_MAX_LEN} bytes"),
-                    ));
-                }
-                if let Some(i) = target.find(|c: char| c == '/' || c.is_whitespace()) {
-                    return Err(fail(
-                        body_at + i,
-                        format!("interface name `{target}` contains `/` or white space"),
-                    ));
+                if let Err(error) = interface_name::check(target) {
+                    let offset = match &error {
+                        InterfaceNameError::BadByte { offset, .. } => body_at + offset,
+                        _ => body_at,
+                    };
+                    return Err(fail(offset, error.to_string()));
                 }
                 Ok(LinkUri::SocketCan {
                     iface: target.to_owned(),
