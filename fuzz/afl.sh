@@ -3,7 +3,7 @@
 #
 #   fuzz/afl.sh build                      instrumented release build (target/afl/)
 #   fuzz/afl.sh run TARGET SECONDS [OUT]   one target for SECONDS (default OUT: fuzz/out)
-#   fuzz/afl.sh all SECONDS [OUT]          every target, two at a time
+#   fuzz/afl.sh all SECONDS [OUT]          every target, AFL_PARALLEL (default 2) at a time
 #   fuzz/afl.sh summary [OUT]              a table of each run's fuzzer_stats
 #   fuzz/afl.sh rss TARGET [OUT]           the largest peak RSS over the run's inputs
 #
@@ -86,9 +86,11 @@ case "${1:-}" in
   build) build ;;
   run) run "$2" "$3" "${4:-fuzz/out}" ;;
   all)
-    for ((i = 0; i < ${#targets[@]}; i += 2)); do
-      run "${targets[i]}" "$2" "${3:-fuzz/out}" &
-      if ((i + 1 < ${#targets[@]})); then run "${targets[i + 1]}" "$2" "${3:-fuzz/out}" & fi
+    at_once=${AFL_PARALLEL:-2}
+    for ((i = 0; i < ${#targets[@]}; i += at_once)); do
+      for ((j = i; j < i + at_once && j < ${#targets[@]}; j++)); do
+        run "${targets[j]}" "$2" "${3:-fuzz/out}" &
+      done
       wait
     done
     ;;
