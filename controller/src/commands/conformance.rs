@@ -111,6 +111,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         duration_s: 0.0,
         record_dir: None,
         sensor_expectation: None,
+        replay: None,
     };
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()

@@ -66,6 +66,14 @@ pub struct Args {
     /// scenario's (0: none).
     #[arg(long, allow_negative_numbers = true)]
     probe_s: Option<f64>,
+    /// Serve a recorded session (a scan's output folder or a bench capture: `fsm.log`,
+    /// `sensor.ild`) as the devices, in lockstep, instead of emulating the scene; the report's
+    /// `replay` section names the first period whose coil command differs from the recording's.
+    #[arg(long, value_name = "DIR")]
+    replay: Option<PathBuf>,
+    /// With --replay: a coil command that differs from the recording's fails the run (exit 4).
+    #[arg(long)]
+    replay_must_match: bool,
 }
 
 /// The timing modes on the command line.
@@ -102,6 +110,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         emulator_cpu: args.emulator_cpu,
         sched_fifo_priority: args.sched_fifo_priority,
         probe_s: args.probe_s,
+        replay: args.replay,
+        replay_must_match: args.replay_must_match,
     };
     // A scenario error names its file already; anything else gets the scan's name.
     let result = run_scan(&scenario, &options).map_err(|error| {

@@ -87,6 +87,8 @@ pub struct RunData {
     pub run_time_s: f64,
     /// Recordings that could not be created or written.
     pub failed_recordings: OutputFailures,
+    /// The recorded session the devices replayed (`None`: no replay).
+    pub replay: Option<super::replay_check::ReplayRun>,
 }
 
 /// Images the run with the one imaging pipeline (the rig's geometry and calibration) and
@@ -195,6 +197,13 @@ pub fn write(
     };
     let [alpha, beta] =
         RunFigures::axes(&tracking.frame, predicted.as_ref().unwrap_or(&unpredicted));
+    let replay = run.replay.as_ref().map(|replay| {
+        replay.judged(
+            run.emulator_summary
+                .as_ref()
+                .map(|emulator| &emulator["summary"]),
+        )
+    });
     let verdict = judge(&RunFigures {
         stopped_by: record.stopped_by.as_ref().map(ToString::to_string),
         frame_periods: tracking.frame.periods,
@@ -206,6 +215,7 @@ pub fn write(
             paired_with_distance: pairing.with_distance as u64,
         }),
         imaging_error: imaging_error.clone(),
+        replay: replay.as_ref().map(|(_, figures)| *figures),
     });
     let figures = scenario.trajectory.figures(imaging.as_ref().map(|m| {
         (
@@ -288,6 +298,7 @@ pub fn write(
         },
         "faults": scenario.faults.is_active().then(|| fault_report(scenario, run, &sensor_counters, &sensor_errors)),
         "emulator": emulator,
+        "replay": replay.map(|(section, _)| section),
         "outputs": { "failed": &failed },
     });
     let text = serde_json::to_string_pretty(&report).context("formatting report.json")?;

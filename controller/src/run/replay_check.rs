@@ -1,0 +1,45 @@
+//! A scan against a recorded session (`scanhil scan --replay DIR`, served by
+//! `scanhil-emulator replay`): the report's `replay` section and the verdict's figures, from
+//! the emulator's summary line, whose `replay` compares each coil command the host sent with
+//! the recorded one of its period (no I/O).
+
+use std::path::PathBuf;
+
+use super::verdict::ReplayFigures;
+
+/// What the scan replays, and whether a divergence fails it.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct ReplayRun {
+    /// The recorded session's folder.
+    pub recording: PathBuf,
+    /// `--replay-must-match`: a coil command that differs from the recording's fails the run.
+    pub must_match: bool,
+}
+
+impl ReplayRun {
+    /// The report's `replay` section (the recording, `must_match`, and the emulator's
+    /// comparison: `compared`, `differing`, `not_recorded`, `largest_difference_a`,
+    /// `first_divergence`) and the verdict's figures, from the emulator's summary line (`None`
+    /// or without `replay`: nothing was compared).
+    #[must_use]
+    pub fn judged(
+        &self,
+        summary: Option<&serde_json::Value>,
+    ) -> (serde_json::Value, ReplayFigures) {
+        let comparison = summary.map_or(&serde_json::Value::Null, |summary| &summary["replay"]);
+        let figures = ReplayFigures {
+            must_match: self.must_match,
+            compared: comparison["compared"].as_u64().unwrap_or(0),
+            first_divergence: comparison["first_divergence"]["period"].as_u64(),
+        };
+        let mut section = serde_json::json!({
+            "recording": self.recording.display().to_string(),
+            "must_match": self.must_match,
+        });
+        if let (Some(section), Some(comparison)) = (section.as_object_mut(), comparison.as_object())
+        {
+            section.extend(comparison.clone());
+        }
+        (section, figures)
+    }
+}
