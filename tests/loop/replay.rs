@@ -59,7 +59,11 @@ fn assert_reproduces_the_recording(out: &Path) {
     // The truth scene's path is where the checkout is, not a figure.
     for report in [&mut recorded, &mut replayed] {
         let truth = report["imaging"]["truth"].take();
-        assert!(truth.as_str().is_some_and(|path| path.ends_with("duplo-2x4-130mm.json")));
+        assert!(
+            truth
+                .as_str()
+                .is_some_and(|path| path.ends_with("duplo-2x4-130mm.json"))
+        );
     }
     for section in ["imaging", "samples", "tracking_error", "periods"] {
         assert_eq!(
@@ -294,5 +298,34 @@ fn a_recording_with_a_line_removed_is_refused_naming_the_line() {
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert_eq!(output.status.code(), Some(1), "{stderr}");
     assert!(stderr.contains(&expected), "{stderr}");
+    assert!(!out.path().join("fsm.log").exists(), "no link opened");
+}
+
+#[test]
+fn replay_flags_that_cannot_apply_are_refused_before_any_link_opens() {
+    let out = tempfile::tempdir().expect("a temporary folder");
+    let dir = recording();
+    for (extra, flag, why) in [
+        (vec!["--timing", "realtime"], "--replay", "lockstep only"),
+        (vec!["--no-emulator"], "--replay", "not with --no-emulator"),
+    ] {
+        let output = replay_scan(&fixture(SCENARIO), &dir, out.path(), &extra);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(1), "{stderr}");
+        assert!(stderr.contains(flag) && stderr.contains(why), "{stderr}");
+    }
+    let output = run_scanhil(&[
+        "scan",
+        &fixture(SCENARIO),
+        "--replay-must-match",
+        "--out",
+        out.path().to_str().expect("UTF-8 path"),
+    ]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("--replay-must-match: needs --replay DIR"),
+        "{stderr}"
+    );
     assert!(!out.path().join("fsm.log").exists(), "no link opened");
 }

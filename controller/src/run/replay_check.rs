@@ -43,3 +43,56 @@ impl ReplayRun {
         (section, figures)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(must_match: bool) -> ReplayRun {
+        ReplayRun {
+            recording: PathBuf::from("fixtures/recordings/replay-small"),
+            must_match,
+        }
+    }
+
+    #[test]
+    fn the_section_holds_the_emulators_comparison_and_the_figures_its_first_divergence() {
+        let summary = serde_json::json!({
+            "replay": {
+                "compared": 301,
+                "differing": 248,
+                "not_recorded": 0,
+                "largest_difference_a": { "a": 0.6, "b": 1.1 },
+                "first_divergence": { "period": 1, "difference_a": { "a": 0.000232, "b": 0.004005 } },
+            }
+        });
+        let (section, figures) = run(true).judged(Some(&summary));
+        assert_eq!(
+            figures,
+            ReplayFigures {
+                must_match: true,
+                compared: 301,
+                first_divergence: Some(1),
+            }
+        );
+        assert_eq!(section["recording"], "fixtures/recordings/replay-small");
+        assert_eq!(section["must_match"], true);
+        assert_eq!(section["differing"], 248);
+        assert_eq!(section["first_divergence"]["difference_a"]["b"], 0.004005);
+    }
+
+    #[test]
+    fn without_the_emulators_summary_nothing_was_compared() {
+        for summary in [None, Some(serde_json::json!({ "outcome": "finished" }))] {
+            let (section, figures) = run(false).judged(summary.as_ref());
+            assert_eq!(figures, ReplayFigures::default());
+            assert_eq!(
+                section,
+                serde_json::json!({
+                    "recording": "fixtures/recordings/replay-small",
+                    "must_match": false,
+                })
+            );
+        }
+    }
+}

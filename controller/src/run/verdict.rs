@@ -592,4 +592,50 @@ mod tests {
             ["the samples could not be imaged: grid too large"]
         );
     }
+
+    #[test]
+    fn a_replay_that_diverges_is_noted_or_fails_when_it_must_match() {
+        let replay = |must_match, compared, first_divergence| {
+            judge(&RunFigures {
+                replay: Some(ReplayFigures {
+                    must_match,
+                    compared,
+                    first_divergence,
+                }),
+                ..good()
+            })
+        };
+        for must_match in [false, true] {
+            let same = replay(must_match, 301, None);
+            assert_eq!(same.status, Status::Complete);
+            assert!(same.notes.is_empty() && same.reasons.is_empty(), "{same:?}");
+        }
+        let noted = replay(false, 301, Some(17));
+        assert_eq!(noted.status, Status::Complete);
+        assert_eq!(
+            noted.notes,
+            [
+                "the host's coil commands differ from the recording's from period 17 (see \
+              `replay`; --replay-must-match makes this a failed run)"
+            ]
+        );
+        let failed = replay(true, 301, Some(17));
+        assert_eq!(failed.status, Status::Failed);
+        assert_eq!(
+            failed.reasons,
+            [
+                "the host's coil commands differ from the recording's from period 17 \
+              (--replay-must-match)"
+            ]
+        );
+        // Nothing compared (the emulator's summary lost) is no match either.
+        assert_eq!(replay(true, 0, None).status, Status::Failed);
+        assert_eq!(
+            replay(false, 0, None).notes,
+            [
+                "no coil command was compared with the recording (see `replay`; \
+              --replay-must-match makes this a failed run)"
+            ]
+        );
+    }
 }

@@ -346,3 +346,340 @@ pub fn parse_clock(bytes: &[u8], path: &Path) -> Result<Option<RecordedClock>, R
         first_counter,
     }))
 }
+
+#[cfg(test)]
+mod tests {
+    use scanhil_protocol::candump::{Timestamp, push_line};
+    use scanhil_protocol::ild::stream::encode_cycle;
+    use scanhil_protocol::message::{AngleReading, Status};
+
+    use super::*;
+
+    fn command(seq: u16, a_ua: i32) -> Message {
+        Message::CoilCommand(CoilCommand {
+            seq,
+            current_a_ua: a_ua,
+            current_b_ua: -a_ua,
+        })
+    }
+
+    fn reading(seq: u16) -> Message {
+        Message::AngleReading(AngleReading {
+            seq,
+            alpha_urad: i32::from(seq) * 10,
+            beta_urad: -1,
+        })
+    }
+
+    fn status(node: NodeId, state: NodeState, step: u32) -> Message {
+        Message::Status(Status {
+            node,
+            state,
+            step,
+            node_time_us: step * 50,
+        })
+    }
+
+    fn line(message: &Message) -> String {
+        let mut out = Vec::new();
+        push_line(
+            &mut out,
+            Timestamp::from_secs_f64(1.5),
+            "can0",
+            &message.encode().unwrap(),
+        );
+        String::from_utf8(out).unwrap()
+    }
+
+    /// A lockstep session of `periods` periods: command, Step, reading, a heartbeat after
+    /// the reading of period 1, then the zero command, the controller's end and the node's
+    /// answer.
+    fn session(periods: u16) -> Vec<String> {
+        let mut lines = Vec::new();
+        for k in 0..periods {
+            lines.push(line(&command(k, 100 * i32::from(k))));
+            lines.push(line(&Message::Step { step: k.into() }));
+            lines.push(line(&reading(k)));
+            if k == 1 {
+                lines.push(line(&status(NodeId::Fsm, NodeState::Running, 1)));
+            }
+        }
+        lines.push(line(&command(periods, 0)));
+        lines.push(line(&status(
+            NodeId::Controller,
+            NodeState::Ready,
+            periods.into(),
+        )));
+        lines.push(line(&status(NodeId::Fsm, NodeState::Ready, periods.into())));
+        lines
+    }
+
+    fn parse(lines: &[String]) -> Result<Recording, RecordingError> {
+        Recording::parse_fsm(lines.join("\n").as_bytes(), Path::new("dir/fsm.log"))
+    }
+
+    fn refusal(lines: &[String]) -> String {
+        parse(lines).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn each_period_holds_the_nodes_frames_from_its_reading_to_the_next() {
+        let recording = parse(&session(3)).unwrap();
+        let frames = |messages: &[Message]| -> Vec<CanFrame> {
+            messages.iter().map(|m| m.encode().unwrap()).collect()
+        };
+        assert_eq!(recording.periods.len(), 3);
+        assert_eq!(recording.periods[0].frames, frames(&[reading(0)]));
+        assert_eq!(
+            recording.periods[1].frames,
+            frames(&[reading(1), status(NodeId::Fsm, NodeState::Running, 1)])
+        );
+        assert_eq!(recording.periods[2].frames, frames(&[reading(2)]));
+        assert!(recording.periods.iter().all(|period| period.reading == 0));
+        // The host's commands, the zero command at the end included; no Step is the node's.
+        let amps: Vec<i32> = recording.commands.iter().map(|c| c.current_a_ua).collect();
+        assert_eq!(amps, [0, 100, 200, 0]);
+        assert_eq!(
+            recording.end_of_run,
+            frames(&[status(NodeId::Fsm, NodeState::Ready, 3)])
+        );
+        assert!(recording.cycles.is_empty() && recording.clock.is_none());
+    }
+
+    #[test]
+    fn node_frames_before_the_first_reading_go_with_period_0_before_it() {
+        let mut lines = session(2);
+        lines.insert(0, line(&Message::Sync { step: 0 }));
+        let recording = parse(&lines).unwrap();
+        assert_eq!(recording.periods[0].frames.len(), 2);
+        assert_eq!(recording.periods[0].reading, 1);
+        assert_eq!(recording.periods[0].frames[1], reading(0).encode().unwrap());
+    }
+
+    #[test]
+    fn a_bench_captures_extra_lines_are_passed_over() {
+        let mut lines = session(2);
+        // `-x` directions, an error frame, a frame of another device, a controller's running
+        // status and fault, blank lines.
+        lines[2] += " R";
+        lines.insert(3, "(1.500000) can0 20000040#0000000000000000 R".into());
+        lines.insert(3, "(1.500000) can0 7FF#00".into());
+        lines.insert(3, line(&status(NodeId::Controller, NodeState::Running, 0)));
+        lines.insert(3, String::new());
+        let recording = parse(&lines).unwrap();
+        assert_eq!(recording.periods.len(), 2);
+        assert_eq!(recording.periods[0].frames.len(), 1);
+    }
+
+    #[test]
+    fn a_missing_reading_is_refused_at_the_next_one() {
+        let mut lines = session(4);
+        // Period 1's reading (line 6); period 2's is then line 9 (period 1's heartbeat stays).
+        lines.remove(5);
+        assert_eq!(
+            refusal(&lines),
+            "dir/fsm.log: line 9: AngleReading counter 2 where period 1 (counter 1) was next: \
+             a period is missing or out of order"
+        );
+    }
+
+    #[test]
+    fn a_missing_command_is_refused_at_the_next_one() {
+        let mut lines = session(3);
+        // Period 1's command (line 4); period 2's is then line 7.
+        lines.remove(3);
+        assert_eq!(
+            refusal(&lines),
+            "dir/fsm.log: line 7: CoilCommand counter 2 where period 1 (counter 1) was next: \
+             a period is missing or out of order"
+        );
+    }
+
+    #[test]
+    fn counters_wrap_at_2_to_the_16() {
+        assert_eq!(in_sequence("AngleReading", 0, 65_536), Ok(()));
+        assert_eq!(in_sequence("AngleReading", 4, 65_540), Ok(()));
+        assert!(in_sequence("AngleReading", 1, 65_536).is_err());
+    }
+
+    #[test]
+    fn what_cannot_be_served_is_refused_naming_the_line() {
+        let mut dropped = session(2);
+        dropped.insert(
+            2,
+            "DROPCOUNT: dropped 3 CAN frames on 'can0' socket (total drops 3)".into(),
+        );
+        assert_eq!(
+            refusal(&dropped),
+            "dir/fsm.log: line 3: candump's socket dropped 3 frame(s) on can0: the recording \
+             has a gap"
+        );
+        let mut garbage = session(2);
+        garbage[1] = "not a candump line".into();
+        assert!(
+            refusal(&garbage).starts_with("dir/fsm.log: line 2: "),
+            "{}",
+            refusal(&garbage)
+        );
+        let mut malformed = session(2);
+        malformed[2] = "(1.500000) can0 110#00".into();
+        assert!(
+            refusal(&malformed).starts_with("dir/fsm.log: line 3: AngleReading"),
+            "{}",
+            refusal(&malformed)
+        );
+        let mut late = session(2);
+        late.push(line(&reading(2)));
+        assert_eq!(
+            refusal(&late),
+            format!(
+                "dir/fsm.log: line {}: an AngleReading after the end of the run",
+                late.len()
+            )
+        );
+        assert_eq!(
+            refusal(&session(0)),
+            "dir/fsm.log: no AngleReading: nothing to serve"
+        );
+        let bad_utf8 = Recording::parse_fsm(&b"\xff\xfe\n"[..], Path::new("dir/fsm.log"));
+        assert!(
+            bad_utf8
+                .unwrap_err()
+                .to_string()
+                .starts_with("dir/fsm.log: line 1: "),
+        );
+    }
+
+    #[test]
+    fn can_fd_frames_count_as_the_command_and_the_reading_they_carry() {
+        let distance = scanhil_protocol::message::Distance {
+            value: scanhil_protocol::ild::IldValue::from_raw(1000),
+            counter: 7,
+            sensor_time_us: 0,
+        };
+        let lines = [
+            line(&Message::CommandStepFd {
+                command: CoilCommand {
+                    seq: 0,
+                    current_a_ua: 5,
+                    current_b_ua: 6,
+                },
+                step: 0,
+            }),
+            line(&Message::AnglesDistanceFd {
+                angles: AngleReading {
+                    seq: 0,
+                    alpha_urad: 1,
+                    beta_urad: 2,
+                },
+                distance,
+            }),
+            line(&Message::Distance(distance)),
+        ];
+        let recording = parse(&lines).unwrap();
+        assert_eq!(recording.commands.len(), 1);
+        assert_eq!(recording.commands[0].current_b_ua, 6);
+        assert_eq!(recording.periods.len(), 1);
+        assert_eq!(recording.periods[0].frames.len(), 2);
+    }
+
+    #[test]
+    fn the_ild_stream_is_read_into_its_cycles() {
+        let mut bytes = encode_cycle(&[10, 20]);
+        bytes.extend(encode_cycle(&[30]));
+        bytes.extend(encode_cycle(&[40, 50, 60]));
+        let cycles = parse_ild(&bytes, Path::new("sensor.ild")).unwrap();
+        assert_eq!(cycles, [vec![10, 20], vec![30], vec![40, 50, 60]]);
+        assert!(parse_ild(&[], Path::new("sensor.ild")).unwrap().is_empty());
+    }
+
+    #[test]
+    fn an_ild_stream_that_cannot_be_served_is_refused_naming_the_byte() {
+        let path = Path::new("sensor.ild");
+        let two = encode_cycle(&[10, 20]);
+        // Starting with the cycle's second value: its start is not in the recording.
+        assert_eq!(
+            parse_ild(&two[3..], path).unwrap_err().to_string(),
+            "sensor.ild: byte offset 0: a value of an output cycle whose start is not in the \
+             recording"
+        );
+        // Cut mid-value.
+        assert_eq!(
+            parse_ild(&two[..4], path).unwrap_err().to_string(),
+            "sensor.ild: byte offset 3: the stream ends mid-value"
+        );
+        // A byte lost: the decoder skips to the next L byte.
+        let mut lost = two.clone();
+        lost.remove(1);
+        lost.extend(encode_cycle(&[30]));
+        let error = parse_ild(&lost, path).unwrap_err().to_string();
+        assert!(error.starts_with("sensor.ild: byte offset 0: "), "{error}");
+    }
+
+    #[test]
+    fn the_report_gives_the_clock_its_host_used() {
+        let path = Path::new("report.json");
+        let clock = |json: &str| parse_clock(json.as_bytes(), path);
+        assert_eq!(
+            clock(r#"{"samples":{"sensor_clock":{"counter_zero_s":-0.5,"counter_offset":12}}}"#)
+                .unwrap(),
+            Some(RecordedClock {
+                counter_zero_s: -0.5,
+                first_counter: 12
+            })
+        );
+        assert_eq!(
+            clock(r#"{"samples":{"sensor_clock":{"counter_zero_s":0.25}}}"#).unwrap(),
+            Some(RecordedClock {
+                counter_zero_s: 0.25,
+                first_counter: 0
+            })
+        );
+        assert_eq!(clock(r#"{"samples":{"sensor_clock":null}}"#).unwrap(), None);
+        assert_eq!(clock("{}").unwrap(), None);
+        for (bad, why) in [
+            ("[", "report.json: EOF while parsing"),
+            (
+                r#"{"samples":{"sensor_clock":{}}}"#,
+                "report.json: samples.sensor_clock.counter_zero_s: expected a number",
+            ),
+            (
+                r#"{"samples":{"sensor_clock":{"counter_zero_s":0,"counter_offset":-1}}}"#,
+                "report.json: samples.sensor_clock.counter_offset: expected a whole number",
+            ),
+        ] {
+            let error = clock(bad).unwrap_err().to_string();
+            assert!(error.starts_with(why), "{error}");
+        }
+    }
+
+    #[test]
+    fn a_session_folder_is_read_whole_and_its_optional_files_may_be_absent() {
+        let dir = tempfile::tempdir().unwrap();
+        let error = Recording::read(dir.path()).unwrap_err().to_string();
+        assert!(error.contains("fsm.log: No such file"), "{error}");
+        std::fs::write(dir.path().join(FSM_LOG), session(2).join("\n")).unwrap();
+        let bare = Recording::read(dir.path()).unwrap();
+        assert_eq!(bare.periods.len(), 2);
+        assert!(bare.cycles.is_empty() && bare.clock.is_none());
+        std::fs::write(dir.path().join(SENSOR_ILD), encode_cycle(&[7])).unwrap();
+        std::fs::write(
+            dir.path().join(REPORT),
+            r#"{"samples":{"sensor_clock":{"counter_zero_s":1.0}}}"#,
+        )
+        .unwrap();
+        let whole = Recording::read(dir.path()).unwrap();
+        assert_eq!(whole.cycles, [vec![7]]);
+        assert_eq!(whole.clock.map(|c| c.counter_zero_s), Some(1.0));
+        // A file that is there but cannot be read is an error, not an absent file.
+        std::fs::remove_file(dir.path().join(SENSOR_ILD)).unwrap();
+        std::fs::create_dir(dir.path().join(SENSOR_ILD)).unwrap();
+        let error = Recording::read(dir.path()).unwrap_err().to_string();
+        assert!(error.contains("sensor.ild"), "{error}");
+        std::fs::remove_dir(dir.path().join(SENSOR_ILD)).unwrap();
+        std::fs::remove_file(dir.path().join(REPORT)).unwrap();
+        std::fs::create_dir(dir.path().join(REPORT)).unwrap();
+        let error = Recording::read(dir.path()).unwrap_err().to_string();
+        assert!(error.contains("report.json"), "{error}");
+    }
+}

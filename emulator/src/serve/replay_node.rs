@@ -295,3 +295,299 @@ impl LockstepAnswers for ReplayNode {
         self.next_period as f64 * self.period_s
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use scanhil_protocol::message::{AngleReading, Fault, Status};
+
+    use super::*;
+    use crate::serve::recording::RecordedPeriod;
+
+    const PERIOD_S: f64 = 1e-3;
+
+    fn encode(message: Message) -> CanFrame {
+        message.encode().unwrap()
+    }
+
+    fn reading(seq: u16) -> CanFrame {
+        encode(Message::AngleReading(AngleReading {
+            seq,
+            alpha_urad: i32::from(seq),
+            beta_urad: 0,
+        }))
+    }
+
+    fn heartbeat(step: u32) -> CanFrame {
+        encode(Message::Status(Status {
+            node: NodeId::Fsm,
+            state: NodeState::Running,
+            step,
+            node_time_us: 0,
+        }))
+    }
+
+    fn command(seq: u16, a_ua: i32, b_ua: i32) -> CoilCommand {
+        CoilCommand {
+            seq,
+            current_a_ua: a_ua,
+            current_b_ua: b_ua,
+        }
+    }
+
+    /// Three periods (a heartbeat before period 1's reading), commands 10k uA and -k uA, five
+    /// sensor cycles.
+    fn recording() -> Recording {
+        Recording {
+            periods: vec![
+                RecordedPeriod {
+                    frames: vec![reading(0)],
+                    reading: 0,
+                },
+                RecordedPeriod {
+                    frames: vec![heartbeat(0), reading(1)],
+                    reading: 1,
+                },
+                RecordedPeriod {
+                    frames: vec![reading(2)],
+                    reading: 0,
+                },
+            ],
+            commands: (0..3)
+                .map(|k| command(k, 10 * i32::from(k), -i32::from(k)))
+                .collect(),
+            end_of_run: Vec::new(),
+            cycles: (0..5).map(|i| vec![i]).collect(),
+            clock: None,
+        }
+    }
+
+    /// 1.5 cycles a period.
+    fn node() -> ReplayNode {
+        ReplayNode::new(recording(), PERIOD_S, 1500.0)
+    }
+
+    fn sends(reply: NodeReply) -> Vec<NodeSend> {
+        match reply {
+            NodeReply::Send(sends) => sends,
+            other => panic!("{other:?}"),
+        }
+    }
+
+    fn step(node: &mut ReplayNode, k: u32) -> Vec<NodeSend> {
+        sends(node.on_frame(&encode(Message::Step { step: k })).unwrap())
+    }
+
+    fn cycles(values: &[u32]) -> NodeSend {
+        NodeSend::Cycles(values.iter().map(|&v| vec![v]).collect())
+    }
+
+    #[test]
+    fn each_step_gets_its_periods_frames_and_the_cycles_measured_by_its_end() {
+        let mut node = node();
+        assert_eq!(node.state(), NodeState::Ready);
+        assert_eq!(node.loop_time_s(), 0.0);
+        // Cycles measured before 1.5, 3.0 (the last period: all that is left).
+        assert_eq!(
+            step(&mut node, 0),
+            [NodeSend::Frame(reading(0)), cycles(&[0, 1])]
+        );
+        assert_eq!(node.state(), NodeState::Running);
+        assert_eq!(
+            step(&mut node, 1),
+            [
+                NodeSend::Frame(heartbeat(0)),
+                NodeSend::Frame(reading(1)),
+                cycles(&[2])
+            ]
+        );
+        assert_eq!(
+            step(&mut node, 2),
+            [NodeSend::Frame(reading(2)), cycles(&[3, 4])]
+        );
+        assert!((node.loop_time_s() - 3.0 * PERIOD_S).abs() < 1e-15);
+        let counters = node.counters();
+        assert_eq!(
+            (
+                counters.periods,
+                counters.recorded_periods,
+                counters.sensor_cycles
+            ),
+            (3, 3, 5)
+        );
+    }
+
+    #[test]
+    fn a_recording_with_fewer_cycles_than_the_rate_runs_out_of_them_gently() {
+        let mut node = ReplayNode::new(recording(), PERIOD_S, 4000.0);
+        assert_eq!(step(&mut node, 0)[1], cycles(&[0, 1, 2, 3]));
+        assert_eq!(step(&mut node, 1)[2], cycles(&[4]));
+        assert_eq!(step(&mut node, 2)[1], cycles(&[]));
+    }
+
+    #[test]
+    fn a_repeated_step_gets_the_reading_alone_and_another_step_nothing() {
+        let mut node = node();
+        step(&mut node, 0);
+        step(&mut node, 1);
+        assert_eq!(step(&mut node, 1), [NodeSend::Frame(reading(1))]);
+        assert_eq!(node.counters().repeated_steps, 1);
+        assert!(step(&mut node, 0).is_empty());
+        assert!(step(&mut node, 5).is_empty());
+        assert_eq!(node.counters().out_of_order_steps, 2);
+        assert_eq!(step(&mut node, 2)[0], NodeSend::Frame(reading(2)));
+    }
+
+    #[test]
+    fn a_step_past_the_recording_is_refused() {
+        let mut node = node();
+        for k in 0..3 {
+            step(&mut node, k);
+        }
+        let error = node
+            .on_frame(&encode(Message::Step { step: 3 }))
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            error,
+            "the recording ends after period 2 (3 periods): Step 3 cannot be answered"
+        );
+    }
+
+    #[test]
+    fn commands_are_compared_with_the_recorded_ones_of_their_period() {
+        let mut node = node();
+        let on = |node: &mut ReplayNode, c: CoilCommand| {
+            assert!(sends(node.on_frame(&encode(Message::CoilCommand(c))).unwrap()).is_empty());
+        };
+        on(&mut node, command(0, 0, 0));
+        assert_eq!(node.held_command_a(), ActuatorPair::default());
+        step(&mut node, 0);
+        // Period 1 recorded 10 uA and -1 uA.
+        on(&mut node, command(1, 242, -1));
+        assert_eq!(node.held_command_a(), command(1, 242, -1).amps());
+        step(&mut node, 1);
+        on(&mut node, command(2, 20, -2_000_002));
+        step(&mut node, 2);
+        on(&mut node, command(3, 0, 0));
+        let comparison = node.comparison();
+        assert_eq!(
+            (
+                comparison.compared,
+                comparison.differing,
+                comparison.not_recorded
+            ),
+            (3, 2, 1)
+        );
+        let first = comparison.first_divergence.expect("period 1 differs");
+        assert_eq!(first.period, 1);
+        assert_eq!(first.difference_a, ActuatorPair { a: 232e-6, b: 0.0 });
+        assert_eq!(first.recorded_a, command(1, 10, -1).amps());
+        assert_eq!(first.received_a, command(1, 242, -1).amps());
+        assert_eq!(
+            comparison.largest_difference_a,
+            ActuatorPair { a: 232e-6, b: 2.0 }
+        );
+    }
+
+    #[test]
+    fn a_combined_fd_frame_is_the_command_and_the_step() {
+        let mut node = node();
+        let frame = encode(Message::CommandStepFd {
+            command: command(0, 5, 0),
+            step: 0,
+        });
+        assert_eq!(
+            sends(node.on_frame(&frame).unwrap())[0],
+            NodeSend::Frame(reading(0))
+        );
+        assert_eq!(node.comparison().differing, 1);
+        assert_eq!(node.comparison().first_divergence.unwrap().period, 0);
+    }
+
+    #[test]
+    fn the_controllers_end_gets_the_recorded_answer_or_a_ready_status() {
+        let end = encode(Message::Status(Status {
+            node: NodeId::Controller,
+            state: NodeState::Ready,
+            step: 1,
+            node_time_us: 0,
+        }));
+        let mut node = node();
+        step(&mut node, 0);
+        let NodeReply::EndOfRun(ready) = node.on_frame(&end).unwrap() else {
+            panic!("the end of the run")
+        };
+        assert_eq!(ready, status_frame(NodeState::Ready, 1, PERIOD_S).unwrap());
+        assert_eq!(node.state(), NodeState::Ready);
+        let recorded = heartbeat(9);
+        let mut node = ReplayNode::new(
+            Recording {
+                end_of_run: vec![recorded],
+                ..recording()
+            },
+            PERIOD_S,
+            0.0,
+        );
+        assert_eq!(node.on_frame(&end).unwrap(), NodeReply::EndOfRun(recorded));
+        // The controller's running status is no end.
+        let running = encode(Message::Status(Status {
+            node: NodeId::Controller,
+            state: NodeState::Running,
+            step: 0,
+            node_time_us: 0,
+        }));
+        assert_eq!(node.on_frame(&running).unwrap(), NodeReply::Ignored);
+    }
+
+    #[test]
+    fn the_watchdog_or_a_failed_link_zeroes_the_coils_and_sends_the_fault() {
+        let mut node = node();
+        node.on_frame(&encode(Message::CoilCommand(command(0, 500, 0))))
+            .unwrap();
+        step(&mut node, 0);
+        assert_ne!(node.held_command_a(), ActuatorPair::default());
+        let [fault, status] = node.on_link_timeout(7).unwrap();
+        assert_eq!(
+            Message::decode(&fault).unwrap(),
+            Message::Fault(Fault {
+                node: NodeId::Fsm,
+                kind: FaultKind::LinkTimeout,
+                detail: 7,
+                step: 1,
+            })
+        );
+        assert_eq!(status, status_frame(NodeState::Fault, 1, PERIOD_S).unwrap());
+        assert_eq!(node.state(), NodeState::Fault);
+        assert_eq!(node.held_command_a(), ActuatorPair::default());
+        // A faulted node stays so through a step and the end of the run.
+        step(&mut node, 1);
+        assert_eq!(node.state(), NodeState::Fault);
+        let [fault, _] = node.on_link_failure().unwrap();
+        assert!(matches!(
+            Message::decode(&fault).unwrap(),
+            Message::Fault(Fault { detail: 0, .. })
+        ));
+        let end = encode(Message::Status(Status {
+            node: NodeId::Controller,
+            state: NodeState::Ready,
+            step: 2,
+            node_time_us: 0,
+        }));
+        node.on_frame(&end).unwrap();
+        assert_eq!(node.state(), NodeState::Fault);
+    }
+
+    #[test]
+    fn frames_not_for_the_node_are_ignored_and_malformed_ones_counted() {
+        let mut node = node();
+        let unknown =
+            CanFrame::new(scanhil_protocol::can::CanId::standard(0x7FF).unwrap(), &[1]).unwrap();
+        assert_eq!(node.on_frame(&unknown).unwrap(), NodeReply::Ignored);
+        let short_step =
+            CanFrame::new(scanhil_protocol::can::CanId::standard(0x021).unwrap(), &[1]).unwrap();
+        assert_eq!(node.on_frame(&short_step).unwrap(), NodeReply::Ignored);
+        assert_eq!(node.on_frame(&reading(0)).unwrap(), NodeReply::Ignored);
+        assert_eq!(node.counters().malformed_frames, 1);
+        assert_eq!(node.counters().periods, 0);
+    }
+}
