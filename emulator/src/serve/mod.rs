@@ -49,7 +49,7 @@ use crate::plant::Plant;
 use crate::scene::Scene;
 use crate::sensor_faults::SensorFaultModel;
 use mirror_node::MirrorNode;
-use recording::Recording;
+use recording::{RecordedClock, Recording};
 use replay_node::ReplayNode;
 use scanhil_protocol::fault_injection::SensorFaults;
 use scanhil_protocol::ild::command::LineEnding;
@@ -273,9 +273,14 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
     // A recording that cannot be served is refused before any link opens.
     let recording = config.replay.as_deref().map(Recording::read).transpose()?;
     // What each part costs, measured before any link opens (the plant that runs is not
-    // touched).
-    let part_costs = crate::part_cost::measure(&scene, crate::part_cost::CostTiming::default())
-        .with_context(|| format!("timing the parts of {}", config.scene.display()))?;
+    // touched); a replay runs no part.
+    let part_costs = match recording {
+        None => Some(
+            crate::part_cost::measure(&scene, crate::part_cost::CostTiming::default())
+                .with_context(|| format!("timing the parts of {}", config.scene.display()))?,
+        ),
+        Some(_) => None,
+    };
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -332,28 +337,24 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
         println_flushed(&ready)?;
         let mut links = ServeLinks { fsm, sensor };
         let rate_hz = scene.sensor.unwrap_or_default().measuring_rate_hz;
-        let (mut report, mut summary) = match recording {
+        let (mut report, mut summary, declared_clock) = match recording {
             Some(recording) => {
                 replay(recording, plant.period_s(), rate_hz, &mut links, config).await?
             }
-            None => emulate(plant, &scene, &mut links, config).await?,
+            None => {
+                let (report, summary) = emulate(plant, &scene, &mut links, config).await?;
+                (report, summary, None)
+            }
         };
         if let (Some(scheduling), Some(timing)) = (scheduling_report, report.timing.as_object_mut())
         {
             timing.insert("scheduling".into(), scheduling);
         }
         let mut sensor = serde_json::json!(links.sensor.summary());
-        if let (Some(declared), Some(sensor)) =
-            (summary.remove("sensor_clock"), sensor.as_object_mut())
-        {
+        if let (Some(clock), Some(sensor)) = (declared_clock, sensor.as_object_mut()) {
             // A replay declares the clock the recording's host used.
-            sensor.extend(
-                declared
-                    .as_object()
-                    .into_iter()
-                    .flatten()
-                    .map(|(k, v)| (k.clone(), v.clone())),
-            );
+            sensor.insert("counter_zero_s".into(), clock.counter_zero_s.into());
+            sensor.insert("first_sent_counter".into(), clock.first_counter.into());
         }
         summary.extend([
             ("event".to_owned(), "summary".into()),
@@ -412,21 +413,16 @@ async fn emulate(
 }
 
 /// Serves a recorded session in lockstep ([`ReplayNode`]); its summary holds the comparison
-/// of the controller's commands with the recorded ones (`replay`) and the sensor clock it
-/// declares (`sensor_clock`, the recording host's).
+/// of the controller's commands with the recorded ones (`replay`). Returns the sensor clock to
+/// declare too: the recording host's, when its report gave it.
 async fn replay(
     recording: Recording,
     period_s: f64,
     measuring_rate_hz: f64,
     links: &mut ServeLinks,
     config: &ServeConfig,
-) -> anyhow::Result<(LoopReport, NodeSummary)> {
-    let clock = recording.clock.map(|clock| {
-        serde_json::json!({
-            "counter_zero_s": clock.counter_zero_s,
-            "first_sent_counter": clock.first_counter,
-        })
-    });
+) -> anyhow::Result<(LoopReport, NodeSummary, Option<RecordedClock>)> {
+    let clock = recording.clock;
     let mut node = ReplayNode::new(recording, period_s, measuring_rate_hz);
     let report = match lockstep::run_answers(&mut node, links, config).await {
         Ok(report) => report,
@@ -442,9 +438,8 @@ async fn replay(
             serde_json::json!(node.held_command_a()),
         ),
         ("replay".to_owned(), serde_json::json!(node.comparison())),
-        ("sensor_clock".to_owned(), serde_json::json!(clock)),
     ]);
-    Ok((report, summary))
+    Ok((report, summary, clock))
 }
 
 /// Loads the scene at `path`, `seed` (if given) overriding its own, and builds its plant, as

@@ -31,7 +31,9 @@ use std::path::{Path, PathBuf};
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::candump::{LogRecord, parse_record};
 use scanhil_protocol::ild::stream::IldDecoder;
-use scanhil_protocol::message::{CoilCommand, Message, MessageError, NodeId, NodeState};
+use scanhil_protocol::message::{
+    CoilCommand, Message, MessageError, NodeId, NodeState, check_period_counter,
+};
 
 /// The mirror link's recording in a session folder.
 pub const FSM_LOG: &str = "fsm.log";
@@ -239,14 +241,15 @@ impl Recording {
                             reading: at,
                         });
                     }
-                    in_sequence("AngleReading", seq, recording.periods.len()).map_err(bad)?;
+                    check_period_counter("AngleReading", seq, recording.periods.len())
+                        .map_err(bad)?;
                     reading = Some(pending.len());
                     pending.push(frame);
                 }
                 Sender::Node if ended => recording.end_of_run.push(frame),
                 Sender::Node => pending.push(frame),
                 Sender::Command(command) => {
-                    in_sequence("CoilCommand", command.seq, recording.commands.len())
+                    check_period_counter("CoilCommand", command.seq, recording.commands.len())
                         .map_err(bad)?;
                     recording.commands.push(command);
                 }
@@ -265,19 +268,6 @@ impl Recording {
             reading: at,
         });
         Ok(recording)
-    }
-}
-
-/// Whether a counter `seq` is that of period `next` (counters wrap at 2^16).
-fn in_sequence(what: &str, seq: u16, next: usize) -> Result<(), String> {
-    let expected = next as u16;
-    if seq == expected {
-        Ok(())
-    } else {
-        Err(format!(
-            "{what} counter {seq} where period {next} (counter {expected}) was next: a period is \
-             missing or out of order"
-        ))
     }
 }
 
@@ -457,6 +447,26 @@ mod tests {
     }
 
     #[test]
+    fn a_fault_is_the_nodes_frame_unless_the_controller_sent_it() {
+        let fault = |node| {
+            Message::Fault(scanhil_protocol::message::Fault {
+                node,
+                kind: scanhil_protocol::message::FaultKind::OverCurrent,
+                detail: 1,
+                step: 0,
+            })
+        };
+        let mut lines = session(2);
+        lines.insert(3, line(&fault(NodeId::Controller)));
+        lines.insert(3, line(&fault(NodeId::Fsm)));
+        let recording = parse(&lines).unwrap();
+        assert_eq!(
+            recording.periods[0].frames,
+            [reading(0), fault(NodeId::Fsm)].map(|m| m.encode().unwrap())
+        );
+    }
+
+    #[test]
     fn a_bench_captures_extra_lines_are_passed_over() {
         let mut lines = session(2);
         // `-x` directions, an error frame, a frame of another device, a controller's running
@@ -472,34 +482,20 @@ mod tests {
     }
 
     #[test]
-    fn a_missing_reading_is_refused_at_the_next_one() {
-        let mut lines = session(4);
-        // Period 1's reading (line 6); period 2's is then line 9 (period 1's heartbeat stays).
-        lines.remove(5);
-        assert_eq!(
-            refusal(&lines),
-            "dir/fsm.log: line 9: AngleReading counter 2 where period 1 (counter 1) was next: \
-             a period is missing or out of order"
-        );
-    }
-
-    #[test]
-    fn a_missing_command_is_refused_at_the_next_one() {
-        let mut lines = session(3);
-        // Period 1's command (line 4); period 2's is then line 7.
-        lines.remove(3);
-        assert_eq!(
-            refusal(&lines),
-            "dir/fsm.log: line 7: CoilCommand counter 2 where period 1 (counter 1) was next: \
-             a period is missing or out of order"
-        );
-    }
-
-    #[test]
-    fn counters_wrap_at_2_to_the_16() {
-        assert_eq!(in_sequence("AngleReading", 0, 65_536), Ok(()));
-        assert_eq!(in_sequence("AngleReading", 4, 65_540), Ok(()));
-        assert!(in_sequence("AngleReading", 1, 65_536).is_err());
+    fn a_missing_reading_or_command_is_refused_at_the_next_one() {
+        // Period 1's reading is line 6 (period 2's is then line 9: period 1's heartbeat stays);
+        // its command line 4 (period 2's is then line 7).
+        for (removed, line, what) in [(5, 9, "AngleReading"), (3, 7, "CoilCommand")] {
+            let mut lines = session(3);
+            lines.remove(removed);
+            assert_eq!(
+                refusal(&lines),
+                format!(
+                    "dir/fsm.log: line {line}: {what} counter 2 where period 1 (counter 1) was \
+                     next"
+                )
+            );
+        }
     }
 
     #[test]

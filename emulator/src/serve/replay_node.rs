@@ -425,6 +425,15 @@ mod tests {
     }
 
     #[test]
+    fn the_last_period_takes_the_cycles_left_beyond_the_rate() {
+        // One cycle a period for five cycles in three periods.
+        let mut node = ReplayNode::new(recording(), PERIOD_S, 1000.0);
+        assert_eq!(step(&mut node, 0)[1], cycles(&[0]));
+        assert_eq!(step(&mut node, 1)[2], cycles(&[1]));
+        assert_eq!(step(&mut node, 2)[1], cycles(&[2, 3, 4]));
+    }
+
+    #[test]
     fn a_repeated_step_gets_the_reading_alone_and_another_step_nothing() {
         let mut node = node();
         step(&mut node, 0);
