@@ -168,26 +168,12 @@ impl Recording {
         })?;
         let mut recording = Recording::parse_fsm(std::io::BufReader::new(file), &fsm_path)?;
         let ild_path = dir.join(SENSOR_ILD);
-        match std::fs::read(&ild_path) {
-            Ok(bytes) => recording.cycles = parse_ild(&bytes, &ild_path)?,
-            Err(error) if error.kind() == std::io::ErrorKind::NotFound => {}
-            Err(source) => {
-                return Err(RecordingError::Read {
-                    path: ild_path,
-                    source,
-                });
-            }
+        if let Some(bytes) = read_optional(&ild_path)? {
+            recording.cycles = parse_ild(&bytes, &ild_path)?;
         }
         let report_path = dir.join(REPORT);
-        match std::fs::read(&report_path) {
-            Ok(bytes) => recording.clock = parse_clock(&bytes, &report_path)?,
-            Err(error) if error.kind() == std::io::ErrorKind::NotFound => {}
-            Err(source) => {
-                return Err(RecordingError::Read {
-                    path: report_path,
-                    source,
-                });
-            }
+        if let Some(bytes) = read_optional(&report_path)? {
+            recording.clock = parse_clock(&bytes, &report_path)?;
         }
         Ok(recording)
     }
@@ -268,6 +254,18 @@ impl Recording {
             reading: at,
         });
         Ok(recording)
+    }
+}
+
+/// A session's optional file: its bytes, or `None` when it is not there.
+fn read_optional(path: &Path) -> Result<Option<Vec<u8>>, RecordingError> {
+    match std::fs::read(path) {
+        Ok(bytes) => Ok(Some(bytes)),
+        Err(error) if error.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(source) => Err(RecordingError::Read {
+            path: path.to_owned(),
+            source,
+        }),
     }
 }
 
