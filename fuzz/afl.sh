@@ -18,8 +18,8 @@ cd "$(dirname "$0")/.."
 mem_mb=${AFL_MEM_MB:-512}
 timeout_ms=${AFL_TIMEOUT_MS:-2000}
 binary=target/afl/release/scanhil-fuzz-afl
-targets=(slcan candump ild_stream can_messages ild_commands ild_replies decode ply surfaces
-  scenario documents)
+targets=(slcan candump ild_stream can_messages ild_commands ild_replies decode replay ply
+  surfaces scenario documents)
 
 # Headless, on a shared machine: no screen, no core binding, no core dumps through a pipe.
 export AFL_NO_UI=1 AFL_NO_AFFINITY=1 AFL_SKIP_CPUFREQ=1 AFL_I_DONT_CARE_ABOUT_MISSING_CRASHES=1

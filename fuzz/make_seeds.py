@@ -141,6 +141,12 @@ def main():
     write("ild_replies", "refusal", b"\x01MEASRATE 7\r\nW05 Later\r\nE04 Wrong parameter\r\n->")
 
     write("decode", "candump", b"\x00" + candump.encode())
+    # A recorded session for replay: its first periods, its ILD stream, its host's clock.
+    session = FIXTURES / "recordings" / "replay-small"
+    write("replay", "fsm-log", b"\x00" + "\n".join((session / "fsm.log").read_text().splitlines()[:40]).encode() + b"\n")
+    write("replay", "sensor-ild", b"\x01" + (session / "sensor.ild").read_bytes()[:120])
+    clock = json.loads((session / "report.json").read_text())["samples"]["sensor_clock"]
+    write("replay", "report", b"\x02" + json.dumps({"samples": {"sensor_clock": clock}}).encode())
     write("decode", "technician", b"\x00" + technician.encode())
     write("decode", "slcan", b"\x01" + slcan["frames"].encode() + b"t0214E8030000\r")
     write("decode", "ild", b"\x02" + stream)

@@ -17,7 +17,7 @@ use std::io::BufRead;
 use std::path::Path;
 
 use scanhil_protocol::candump::parse_line;
-use scanhil_protocol::message::Message;
+use scanhil_protocol::message::{Message, check_period_counter};
 use scanhil_protocol::plant_units::{
     AMPS_PER_INPUT_UNIT, RAD_PER_OUTPUT_UNIT, SensingPair, sensing_from_actuator,
 };
@@ -74,18 +74,6 @@ pub enum RecordingError {
     },
 }
 
-/// Whether a frame's counter `seq` is that of period `next` (counters wrap at 2^16).
-fn in_sequence(what: &str, seq: u16, next: usize) -> Result<(), String> {
-    let expected = next as u16;
-    if seq == expected {
-        Ok(())
-    } else {
-        Err(format!(
-            "{what} counter {seq} where period {next} ({expected}) was next"
-        ))
-    }
-}
-
 impl RecordedPeriods {
     /// Reads a candump `-L` recording of the mirror's link.
     ///
@@ -134,7 +122,7 @@ impl RecordedPeriods {
                 _ => (None, None),
             };
             if let Some(command) = command {
-                in_sequence("CoilCommand", command.seq, periods.commands.len())
+                check_period_counter("CoilCommand", command.seq, periods.commands.len())
                     .map_err(|reason| bad(line, reason))?;
                 let sensing = sensing_from_actuator(command.amps());
                 periods.commands.push(SensingPair {
@@ -143,7 +131,7 @@ impl RecordedPeriods {
                 });
             }
             if let Some(reading) = reading {
-                in_sequence("AngleReading", reading.seq, periods.readings.len())
+                check_period_counter("AngleReading", reading.seq, periods.readings.len())
                     .map_err(|reason| bad(line, reason))?;
                 let angles = reading.rad();
                 periods.readings.push(SensingPair {
@@ -367,7 +355,7 @@ mod tests {
         let error = RecordedPeriods::parse(lines.join("\n").as_bytes(), "fsm.log").unwrap_err();
         assert_eq!(
             error.to_string(),
-            "fsm.log: line 6: CoilCommand counter 2 where period 1 (1) was next"
+            "fsm.log: line 6: CoilCommand counter 2 where period 1 (counter 1) was next"
         );
 
         let lines: Vec<&str> = log.lines().collect();

@@ -19,6 +19,8 @@ struct Cli {
 enum Command {
     /// Serve the emulated mirror node and/or sensor on real links (SLCAN, SocketCAN, ILD).
     Serve(commands::serve::Args),
+    /// Serve a recorded session (fsm.log, sensor.ild) as the mirror node and the sensor, in lockstep.
+    Replay(commands::replay::Args),
     /// Where the spot lands, the true surface there and what the sensor reports, for a static mirror.
     Probe(commands::probe::Args),
     /// Open-loop response of the emulated mirror to a coil current step (a bench bump test).
@@ -31,6 +33,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Serve(args) => commands::serve::run(args),
+        Command::Replay(args) => commands::replay::run(args),
         Command::Probe(args) => commands::probe::run(args),
         Command::Step(args) => commands::step::run(args),
         Command::Precision(args) => commands::precision::run(args),

@@ -14,7 +14,7 @@
 //! - `scanhil-fuzz-afl <target>` (feature `afl`, built with `cargo afl build`): AFL++
 //!   coverage-guided, for the long runs of docs/testing.md.
 //!
-//! Targets that read a document with a selector (`documents`, `surfaces`, `decode`) take the
+//! Targets that read a document with a selector (`documents`, `surfaces`, `decode`, `replay`) take the
 //! first byte as the selector and the rest as the document, so one target covers a family of
 //! parsers. JSON documents are read as if they were in `fixtures/` (their relative paths to
 //! rigs, controllers, scenes and height maps resolve to the repository's fixtures).
@@ -39,7 +39,7 @@ pub struct Target {
 }
 
 /// Every target, in the order the long run takes them.
-pub const TARGETS: [Target; 11] = [
+pub const TARGETS: [Target; 12] = [
     Target {
         name: "slcan",
         parsers: "SLCAN decoder (host replies and frames, device commands)",
@@ -74,6 +74,11 @@ pub const TARGETS: [Target; 11] = [
         name: "decode",
         parsers: "`scanhil decode` readers (candump, SLCAN, ILD)",
         run: recordings::decode,
+    },
+    Target {
+        name: "replay",
+        parsers: "a recorded session for `scanhil-emulator replay` (fsm.log, sensor.ild, report.json)",
+        run: recordings::replay,
     },
     Target {
         name: "ply",

@@ -156,6 +156,7 @@ short_runs!(
     ild_commands,
     ild_replies,
     decode,
+    replay,
     ply,
     surfaces,
     scenario,

@@ -339,6 +339,7 @@ pub fn run_probed(
             frame_faults,
             run_time_s: started.elapsed().as_secs_f64(),
             failed_recordings: OutputFailures::default(),
+            replay: None,
             plant: PlantDeclares {
                 dynamics: Some(scene.has(Part::Axes)),
             },
@@ -386,6 +387,20 @@ struct MemorySensor {
     track: SensorClockTrack,
     capture: Option<BufWriter<File>>,
     decoder: IldSampleDecoder,
+}
+
+impl MemorySensor {
+    /// One output cycle of `values` goes to the host's decoder (and the capture) at `arrival`.
+    fn emit(&mut self, values: &[u32], arrival: tokio::time::Instant) -> anyhow::Result<()> {
+        let bytes = encode_cycle(values);
+        if let Some(capture) = &mut self.capture {
+            capture
+                .write_all(&bytes)
+                .context("recording the ILD stream")?;
+        }
+        self.decoder.push(&bytes, arrival);
+        Ok(())
+    }
 }
 
 impl Transport {
@@ -496,6 +511,7 @@ impl Transport {
                             self.to_host.push_back(frame);
                         }
                         NodeSend::Samples(samples) => self.emit_samples(&samples)?,
+                        NodeSend::Cycles(cycles) => self.emit_cycles(&cycles)?,
                     }
                 }
             }
@@ -542,13 +558,17 @@ impl Transport {
             };
             sensor.track.measured(sample);
             sensor.track.sent(sample.counter);
-            let bytes = encode_cycle(&values);
-            if let Some(capture) = &mut sensor.capture {
-                capture
-                    .write_all(&bytes)
-                    .context("recording the ILD stream")?;
+            sensor.emit(&values, self.arrival)?;
+        }
+        Ok(())
+    }
+
+    /// A recorded session's output cycles go out on the ILD stream as they are.
+    fn emit_cycles(&mut self, cycles: &[Vec<u32>]) -> anyhow::Result<()> {
+        if let Some(sensor) = &mut self.sensor {
+            for values in cycles {
+                sensor.emit(values, self.arrival)?;
             }
-            sensor.decoder.push(&bytes, self.arrival);
         }
         Ok(())
     }

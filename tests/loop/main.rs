@@ -24,6 +24,8 @@ mod designed_controller;
 mod fitted_twin;
 // The bench-like mirror: identify sees its parts; the paper's PID scans the stud as predicted.
 mod bench_scene;
+// A recorded session served as the devices: bit for bit, divergence, bench capture, refusal.
+mod replay;
 // Lockstep determinism: the same seed twice gives bit-identical recordings and reports.
 mod determinism;
 // The sensor's samples on CAN or on the ILD stream: the same scan, the last period included.

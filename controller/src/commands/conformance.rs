@@ -115,6 +115,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         record_dir: None,
         recording: Default::default(),
         sensor_expectation: None,
+        replay: None,
     };
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()

@@ -78,6 +78,14 @@ pub struct Args {
     /// e.g. `can0`, so `canplayer -I fsm.log` replays it there.
     #[arg(long, value_name = "IFACE")]
     record_iface: Option<String>,
+    /// Serve a recorded session (a scan's output folder or a bench capture: `fsm.log`,
+    /// `sensor.ild`) as the devices, in lockstep, instead of emulating the scene; the report's
+    /// `replay` section names the first period whose coil command differs from the recording's.
+    #[arg(long, value_name = "DIR")]
+    replay: Option<PathBuf>,
+    /// With --replay: a coil command that differs from the recording's fails the run (exit 4).
+    #[arg(long)]
+    replay_must_match: bool,
 }
 
 /// The timing modes on the command line.
@@ -117,6 +125,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         emulator_ready_s: args.emulator_ready_s,
         record_epoch: args.record_epoch,
         record_iface: args.record_iface,
+        replay: args.replay,
+        replay_must_match: args.replay_must_match,
     };
     // A scenario error names its file already; anything else gets the scan's name.
     let result = run_scan(&scenario, &options).map_err(|error| {

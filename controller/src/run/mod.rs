@@ -28,6 +28,8 @@
 //!   [`lead_in`] before the recorded frame, predicted tracking error.
 //! - [`pairing`]: distances with angles by the sensor's own time.
 //! - [`tracking`]: reference against measured angles.
+//! - [`replay_check`]: a scan against a recorded session (`--replay`): the report's `replay`
+//!   section and what the verdict judges of it.
 //! - [`verdict`]: whether the run did what it was asked (complete, stopped, failed), from its
 //!   figures alone.
 //! - [`output`]: report.json, PLY, height map, plots.
@@ -68,6 +70,7 @@ pub mod power_backoff;
 pub mod power_guard;
 pub mod progress;
 pub mod realtime;
+pub mod replay_check;
 pub mod sample_log;
 pub mod scenario;
 pub mod sensor_link;
@@ -83,7 +86,7 @@ use std::time::Duration;
 use anyhow::{Context, bail};
 use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{CanCapture, CanLink, CaptureClock, PtyPair, VirtualClock};
-use scanhil_protocol::validation::Invalid;
+use scanhil_protocol::validation::{Invalid, InvalidValue};
 
 use emulator_process::{EmulatorProcess, locate_emulator};
 use host_loop::{HostLoop, LoopRecord};
@@ -140,6 +143,11 @@ pub struct ScanOptions {
     pub record_epoch: bool,
     /// Overrides the scenario's recording interface name.
     pub record_iface: Option<String>,
+    /// Serve this recorded session as the devices (`scanhil-emulator replay`) instead of
+    /// emulating the scene.
+    pub replay: Option<PathBuf>,
+    /// With `replay`: a coil command that differs from the recording's fails the run.
+    pub replay_must_match: bool,
 }
 
 impl ScanOptions {
@@ -172,6 +180,7 @@ impl ScanOptions {
         if self.no_emulator {
             scenario.links.spawn_emulator = false;
         }
+        self.check_replay(&scenario)?;
         for assignment in &self.faults {
             scenario.faults = scenario.faults.with_override(assignment).map_err(|error| {
                 Invalid::new("fault", Invalid::new(error.field, error.reason).to_string())
@@ -196,6 +205,28 @@ impl ScanOptions {
                 None => invalid.in_file(&scenario.path),
             })?;
         Ok(scenario)
+    }
+
+    /// `--replay` needs an emulator started here to serve the recording, in lockstep;
+    /// `--replay-must-match` needs `--replay`.
+    fn check_replay(&self, scenario: &Scenario) -> Result<(), InvalidValue> {
+        let refused = match &self.replay {
+            None if self.replay_must_match => Some(("--replay-must-match", "needs --replay DIR")),
+            None => None,
+            Some(_) if self.no_emulator => Some((
+                "--replay",
+                "serves the recording from an emulator this scan starts: not with --no-emulator",
+            )),
+            Some(_) if scenario.timing.mode == TimingMode::Realtime => Some((
+                "--replay",
+                "replays in lockstep only, not with realtime timing",
+            )),
+            Some(_) => None,
+        };
+        match refused {
+            Some((flag, reason)) => Err(Invalid::new("replay", reason).as_flag(flag)),
+            None => Ok(()),
+        }
     }
 
     /// The flag that set scenario field `field`, when it was given.
@@ -349,6 +380,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             record_dir: Some(out_dir.clone()),
             recording: scenario.recording.clone(),
             sensor_expectation: rig.sensor,
+            replay: options.replay.clone(),
         };
         let mut links = open_links(&plan).await?;
         let progress = progress::Progress::new(periods, &scenario.name);
@@ -472,6 +504,13 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             frame_faults,
             run_time_s: started.elapsed().as_secs_f64(),
             failed_recordings,
+            replay: options
+                .replay
+                .clone()
+                .map(|recording| replay_check::ReplayRun {
+                    recording,
+                    must_match: options.replay_must_match,
+                }),
         })
     })?;
     // Distance frames on the mirror's link always carry the counter; the ILD line when the
@@ -523,6 +562,9 @@ pub struct LinkPlan {
     /// The rig's sensor: configured and read back before the run, and an emulator started here
     /// must serve it at its rate (`None`: left as it is, not checked).
     pub sensor_expectation: Option<crate::rig::RigSensor>,
+    /// An emulator started here replays this recorded session (`scanhil-emulator replay`)
+    /// instead of serving the scene's plant.
+    pub replay: Option<PathBuf>,
 }
 
 impl LinkPlan {
@@ -565,8 +607,11 @@ pub struct OpenLinks {
 /// it is ready.
 pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
     let timing = plan.timing;
-    let mut emulator_args: Vec<String> = vec![
-        "serve".into(),
+    let mut emulator_args: Vec<String> = match &plan.replay {
+        Some(dir) => vec!["replay".into(), dir.display().to_string()],
+        None => vec!["serve".into()],
+    };
+    emulator_args.extend([
         "--scene".into(),
         plan.scene.display().to_string(),
         "--seed".into(),
@@ -584,7 +629,7 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         // as long as the process: the kernel's signal follows the thread that forked).
         "--exit-with-parent".into(),
         std::process::id().to_string(),
-    ];
+    ]);
     if timing.mode == TimingMode::Realtime {
         emulator_args.extend(realtime::emulator_args(&timing, plan.duration_s));
     }
@@ -593,7 +638,7 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         emulator_args
             .push(serde_json::to_string(&plan.sensor_faults).context("writing the sensor faults")?);
     }
-    let mut spawn = plan.spawn_emulator;
+    let mut spawn = plan.spawn_emulator || plan.replay.is_some();
     let fsm_pty = match &plan.fsm {
         NodeLink::Pty => {
             spawn = true;

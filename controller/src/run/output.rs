@@ -90,6 +90,8 @@ pub struct RunData {
     pub run_time_s: f64,
     /// Recordings that could not be created or written.
     pub failed_recordings: OutputFailures,
+    /// The recorded session the devices replayed (`None`: no replay).
+    pub replay: Option<super::replay_check::ReplayRun>,
 }
 
 /// Images the run with the one imaging pipeline (the rig's geometry and calibration) and
@@ -183,6 +185,13 @@ pub fn write(
         ),
         _ => serde_json::Value::Null,
     };
+    let replay = run.replay.as_ref().map(|replay| {
+        replay.judged(
+            run.emulator_summary
+                .as_ref()
+                .map(|emulator| &emulator["summary"]),
+        )
+    });
     // The report and its verdict for an imaging (or its error) and the outputs not written.
     let report_with = |imaging: Option<&ImagingReport>,
                        imaging_error: Option<String>,
@@ -198,6 +207,7 @@ pub fn write(
                 paired_with_distance: pairing.with_distance as u64,
             }),
             imaging_error: imaging_error.clone(),
+            replay: replay.as_ref().map(|(_, figures)| *figures),
         });
         let figures = scenario.trajectory.figures(imaging.map(|m| {
             (
@@ -271,6 +281,7 @@ pub fn write(
             },
             "faults": scenario.faults.is_active().then(|| fault_report(scenario, run, &sensor_counters, &sensor_errors)),
             "emulator": emulator,
+            "replay": replay.as_ref().map(|(section, _)| section),
             "outputs": { "failed": &failed },
         });
         (report, verdict)

@@ -76,6 +76,7 @@ impl LinkedPlant {
             record_dir: record_dir.map(Path::to_owned),
             recording: Default::default(),
             sensor_expectation: None,
+            replay: None,
         };
         let links = runtime.block_on(open_links(&plan))?;
         Ok(LinkedPlant {

@@ -114,6 +114,18 @@ pub struct SensorFigures {
     pub paired_with_distance: u64,
 }
 
+/// A scan against a recorded session: its coil commands compared with the recorded ones
+/// ([`super::replay_check`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct ReplayFigures {
+    /// `--replay-must-match`: a divergence fails the run.
+    pub must_match: bool,
+    /// Commands compared with a recorded one.
+    pub compared: u64,
+    /// The first period whose command differs (`None`: none did).
+    pub first_divergence: Option<u64>,
+}
+
 /// Everything the verdict is decided from.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct RunFigures {
@@ -131,6 +143,8 @@ pub struct RunFigures {
     pub sensor: Option<SensorFigures>,
     /// Why the samples could not be imaged, if they could not.
     pub imaging_error: Option<String>,
+    /// A replayed session's comparison (`None`: no replay).
+    pub replay: Option<ReplayFigures>,
 }
 
 impl RunFigures {
@@ -295,6 +309,26 @@ pub fn judge(run: &RunFigures) -> Verdict {
             format!("the samples could not be imaged: {error}"),
         );
     }
+    if let Some(replay) = run.replay {
+        let mismatch = match replay.first_divergence {
+            Some(period) => Some(format!(
+                "the host's coil commands differ from the recording's from period {period}"
+            )),
+            None if replay.compared == 0 => {
+                Some("no coil command was compared with the recording".to_owned())
+            }
+            None => None,
+        };
+        match mismatch {
+            Some(why) if replay.must_match => {
+                fail(&mut verdict, format!("{why} (--replay-must-match)"))
+            }
+            Some(why) => verdict.notes.push(format!(
+                "{why} (see `replay`; --replay-must-match makes this a failed run)"
+            )),
+            None => {}
+        }
+    }
     verdict
 }
 
@@ -324,6 +358,7 @@ mod tests {
                 paired_with_distance: 18_725,
             }),
             imaging_error: None,
+            replay: None,
         }
     }
 
@@ -555,6 +590,52 @@ mod tests {
         assert_eq!(
             verdict.reasons,
             ["the samples could not be imaged: grid too large"]
+        );
+    }
+
+    #[test]
+    fn a_replay_that_diverges_is_noted_or_fails_when_it_must_match() {
+        let replay = |must_match, compared, first_divergence| {
+            judge(&RunFigures {
+                replay: Some(ReplayFigures {
+                    must_match,
+                    compared,
+                    first_divergence,
+                }),
+                ..good()
+            })
+        };
+        for must_match in [false, true] {
+            let same = replay(must_match, 301, None);
+            assert_eq!(same.status, Status::Complete);
+            assert!(same.notes.is_empty() && same.reasons.is_empty(), "{same:?}");
+        }
+        let noted = replay(false, 301, Some(17));
+        assert_eq!(noted.status, Status::Complete);
+        assert_eq!(
+            noted.notes,
+            [
+                "the host's coil commands differ from the recording's from period 17 (see \
+              `replay`; --replay-must-match makes this a failed run)"
+            ]
+        );
+        let failed = replay(true, 301, Some(17));
+        assert_eq!(failed.status, Status::Failed);
+        assert_eq!(
+            failed.reasons,
+            [
+                "the host's coil commands differ from the recording's from period 17 \
+              (--replay-must-match)"
+            ]
+        );
+        // Nothing compared (the emulator's summary lost) is no match either.
+        assert_eq!(replay(true, 0, None).status, Status::Failed);
+        assert_eq!(
+            replay(false, 0, None).notes,
+            [
+                "no coil command was compared with the recording (see `replay`; \
+              --replay-must-match makes this a failed run)"
+            ]
         );
     }
 }

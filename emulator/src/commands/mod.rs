@@ -3,6 +3,7 @@
 
 pub mod precision;
 pub mod probe;
+pub mod replay;
 pub mod serve;
 pub mod step;
 

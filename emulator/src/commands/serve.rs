@@ -108,52 +108,63 @@ fn parse_sensor_faults(text: &str) -> Result<SensorFaults, String> {
 /// # Errors
 /// A scene that does not load, a link that does not open, or a plant error.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    if let Some(parent) = args.exit_with_parent {
-        exit_with_parent(parent)?;
-    }
-    let realtime = RealtimeOptions {
-        busy_poll: args.busy_poll,
-        cpu: args.cpu,
-        sched_fifo_priority: args.sched_fifo_priority,
-    };
-    // Every value is checked (ServeConfig::check) once the scene gives the control period,
-    // before any link opens or the ready line is printed.
-    let config = ServeConfig {
-        scene: args.scene,
-        fsm: args.fsm,
-        slcan_adapter: args.slcan_adapter,
-        sensor: args.sensor,
-        ild_line_ending: match args.ild_line_end {
-            IldLineEnd::Any => LineEnding::CrOrLf,
-            IldLineEnd::Lf => LineEnding::Lf,
-        },
-        timing: args.timing,
-        seed: args.seed,
-        watchdog_periods: args.watchdog_periods,
-        lockstep_answer_allowance_s: args.lockstep_answer_allowance_s,
-        duration_s: args.duration_s,
-        heartbeat_hz: args.heartbeat_hz,
-        misbehave: args.misbehave,
-        sensor_faults: args.sensor_faults,
-        realtime,
-        probe_s: args.probe_s,
-    };
-    let outcome = scanhil_emulator::serve::serve(&config).context("serve")?;
+    args.exit_with_parent_if_asked()?;
+    let outcome = scanhil_emulator::serve::serve(&args.config()).context("serve")?;
     Ok(ExitCode::from(outcome.exit_status()))
 }
 
-/// Asks the kernel to SIGKILL this process when its parent ends, then checks the parent is
-/// still `parent` (one that ended before the request was made has left this process to init,
-/// and the signal would never come).
-///
-/// # Errors
-/// The request refused, or `parent` already gone.
-fn exit_with_parent(parent: u32) -> anyhow::Result<()> {
-    nix::sys::prctl::set_pdeathsig(nix::sys::signal::Signal::SIGKILL)
-        .context("--exit-with-parent: setting the parent-death signal")?;
-    let now = nix::unistd::getppid().as_raw();
-    if u32::try_from(now).ok() != Some(parent) {
-        anyhow::bail!("--exit-with-parent {parent}: that process has ended (the parent is {now})");
+impl Args {
+    /// With `--exit-with-parent PID`: asks the kernel to SIGKILL this process when its parent
+    /// ends, then checks the parent is still `PID` (one that ended before the request was made
+    /// has left this process to init, and the signal would never come).
+    ///
+    /// # Errors
+    /// The request refused, or the parent already gone.
+    pub fn exit_with_parent_if_asked(&self) -> anyhow::Result<()> {
+        let Some(parent) = self.exit_with_parent else {
+            return Ok(());
+        };
+        nix::sys::prctl::set_pdeathsig(nix::sys::signal::Signal::SIGKILL)
+            .context("--exit-with-parent: setting the parent-death signal")?;
+        let now = nix::unistd::getppid().as_raw();
+        if u32::try_from(now).ok() != Some(parent) {
+            anyhow::bail!(
+                "--exit-with-parent {parent}: that process has ended (the parent is {now})"
+            );
+        }
+        Ok(())
     }
-    Ok(())
+
+    /// The serve configuration these arguments ask for (checked by `serve` once the scene
+    /// gives the control period).
+    pub fn config(self) -> ServeConfig {
+        let realtime = RealtimeOptions {
+            busy_poll: self.busy_poll,
+            cpu: self.cpu,
+            sched_fifo_priority: self.sched_fifo_priority,
+        };
+        // Every value is checked (ServeConfig::check) once the scene gives the control
+        // period, before any link opens or the ready line is printed.
+        ServeConfig {
+            scene: self.scene,
+            fsm: self.fsm,
+            slcan_adapter: self.slcan_adapter,
+            sensor: self.sensor,
+            ild_line_ending: match self.ild_line_end {
+                IldLineEnd::Any => LineEnding::CrOrLf,
+                IldLineEnd::Lf => LineEnding::Lf,
+            },
+            timing: self.timing,
+            seed: self.seed,
+            watchdog_periods: self.watchdog_periods,
+            lockstep_answer_allowance_s: self.lockstep_answer_allowance_s,
+            duration_s: self.duration_s,
+            heartbeat_hz: self.heartbeat_hz,
+            misbehave: self.misbehave,
+            sensor_faults: self.sensor_faults,
+            realtime,
+            probe_s: self.probe_s,
+            replay: None,
+        }
+    }
 }

@@ -29,24 +29,61 @@ use anyhow::bail;
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::link::Watchdog;
 
-use super::lockstep_node::{LockstepNode, NodeReply, NodeSend};
+use scanhil_protocol::message::MessageError;
+
+use super::lockstep_node::{LockstepNode, LockstepNodeError, NodeReply, NodeSend};
 use super::mirror_node::MirrorNode;
 use super::misbehaviour::{Answer, LATE_ANSWER_ALLOWANCES, Misbehaving};
 use super::wind_down::{linger, wind_down, with_wind_down};
 use super::{LoopReport, RunEnd, ServeConfig, ServeLinks, ServeOutcome};
 
+/// What answers the controller's frames in lockstep, free of I/O: the emulated mirror
+/// ([`LockstepNode`]) or a recorded session ([`super::replay_node::ReplayNode`]).
+pub trait LockstepAnswers {
+    /// Handles one frame from the controller.
+    ///
+    /// # Errors
+    /// The node cannot answer (a plant error, a frame that cannot be encoded, a recording that
+    /// ends).
+    fn on_frame(&mut self, frame: &CanFrame) -> Result<NodeReply, LockstepNodeError>;
+
+    /// The watchdog fired after `missed_periods`: the coils drop to zero; returns the
+    /// LinkTimeout fault and the Status(fault) to send.
+    ///
+    /// # Errors
+    /// A frame that cannot be encoded.
+    fn on_link_timeout(&mut self, missed_periods: u32) -> Result<[CanFrame; 2], MessageError>;
+
+    /// The loop time at the end of the period just answered, s.
+    fn loop_time_s(&self) -> f64;
+}
+
+/// Runs the lockstep loop with the emulated mirror `node` ([`LockstepNode`]), as
+/// [`run_answers`] says.
+///
+/// # Errors
+/// As [`run_answers`].
+pub async fn run(
+    node: &mut MirrorNode,
+    links: &mut ServeLinks,
+    config: &ServeConfig,
+) -> anyhow::Result<LoopReport> {
+    let mut node = LockstepNode::new(node, config.heartbeat_hz);
+    run_answers(&mut node, links, config).await
+}
+
 /// Runs the lockstep loop until the controller hangs up, closes the SLCAN channel, ends the run
-/// with its Status frame, or the watchdog fires. What the node answers is [`LockstepNode`]'s;
-/// this loop only receives, sends and keeps the watchdog. While waiting for frames, the sensor
-/// answers the host's ILD commands. With `config.misbehave`, the node's answers go through
+/// with its Status frame, or the watchdog fires. What the node answers is `node`'s; this loop
+/// only receives, sends and keeps the watchdog. While waiting for frames, the sensor answers
+/// the host's ILD commands. With `config.misbehave`, the node's answers go through
 /// [`Misbehaving`] (a deliberately non-conforming node).
 ///
 /// # Errors
 /// A link error, the host's hang-up included (`serve` ends the run on it as
 /// [`super::wind_down::end_on_link_error`] says), a plant error (non-finite command), a frame
-/// that cannot be encoded, or `--misbehave dies-on-garbage` dying.
-pub async fn run(
-    node: &mut MirrorNode,
+/// that cannot be encoded, a recording that ends, or `--misbehave dies-on-garbage` dying.
+pub async fn run_answers(
+    node: &mut impl LockstepAnswers,
     links: &mut ServeLinks,
     config: &ServeConfig,
 ) -> anyhow::Result<LoopReport> {
@@ -54,7 +91,6 @@ pub async fn run(
     // How long a period's answers may take to be written: the silence the node accepts.
     let write_allowance = allowance.saturating_mul(config.watchdog_periods);
     let mut watchdog: Option<Watchdog> = None;
-    let mut node = LockstepNode::new(node, config.heartbeat_hz);
     let mut misbehaving = config.misbehave.map(Misbehaving::new);
     let late_pause = allowance
         .saturating_mul(config.watchdog_periods)
@@ -124,7 +160,7 @@ pub async fn run(
                 // `sensor_turn` says which line a timeout found unread.
                 // The sensor's cycles go with the answer of the period their last byte arrives
                 // in: by the end of the period just stepped.
-                let until_s = node.node().next_period() as f64 * node.node().plant().period_s();
+                let until_s = node.loop_time_s();
                 let sensor_turn = std::cell::Cell::new(false);
                 let send = async {
                     for send in answer.sends {
@@ -134,6 +170,7 @@ pub async fn run(
                                 links.sensor.offer(&samples);
                                 links.sensor.release(until_s, &mut links.fsm).await?;
                             }
+                            NodeSend::Cycles(cycles) => links.sensor.write_cycles(&cycles)?,
                         }
                     }
                     links.fsm.flush().await?;

@@ -13,7 +13,9 @@ use scanhil_protocol::message::{
     AngleReading, Fault, FaultKind, Message, MessageError, NodeId, NodeState, Status, U24_MAX,
 };
 
+use super::lockstep::LockstepAnswers;
 use super::mirror_node::{MirrorNode, NodeOutput};
+use super::replay_node::ReplayError;
 use crate::plant::{PlantError, PlantStep};
 use crate::sensor::IldSample;
 
@@ -25,6 +27,9 @@ pub enum NodeSend {
     Frame(CanFrame),
     /// The sensor's samples of the period just stepped.
     Samples(Vec<IldSample>),
+    /// The sensor's output cycles of a recorded period (raw values), sent as they are
+    /// ([`super::replay_node`]).
+    Cycles(Vec<Vec<u32>>),
 }
 
 /// What a frame from the controller asks of the node.
@@ -49,6 +54,9 @@ pub enum LockstepNodeError {
     /// A frame could not be encoded.
     #[error("cannot encode a frame: {0}")]
     Encode(#[from] MessageError),
+    /// The recording being replayed cannot answer.
+    #[error(transparent)]
+    Replay(#[from] ReplayError),
 }
 
 /// The mirror node answering the controller frame by frame in lockstep.
@@ -168,6 +176,20 @@ impl<'a> LockstepNode<'a> {
     pub fn on_link_timeout(&mut self, missed_periods: u32) -> Result<[CanFrame; 2], MessageError> {
         let fault = self.node.on_link_timeout(missed_periods);
         last_frames(self.node, fault)
+    }
+}
+
+impl LockstepAnswers for LockstepNode<'_> {
+    fn on_frame(&mut self, frame: &CanFrame) -> Result<NodeReply, LockstepNodeError> {
+        LockstepNode::on_frame(self, frame)
+    }
+
+    fn on_link_timeout(&mut self, missed_periods: u32) -> Result<[CanFrame; 2], MessageError> {
+        LockstepNode::on_link_timeout(self, missed_periods)
+    }
+
+    fn loop_time_s(&self) -> f64 {
+        self.node.next_period() as f64 * self.node.plant().period_s()
     }
 }
 

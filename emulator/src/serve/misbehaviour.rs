@@ -161,7 +161,7 @@ mod tests {
             .iter()
             .filter_map(|send| match send {
                 NodeSend::Frame(frame) => Some(Message::decode(frame).unwrap()),
-                NodeSend::Samples(_) => None,
+                NodeSend::Samples(_) | NodeSend::Cycles(_) => None,
             })
             .collect()
     }
@@ -207,7 +207,7 @@ mod tests {
     fn decode(send: &NodeSend) -> Message {
         match send {
             NodeSend::Frame(frame) => Message::decode(frame).unwrap(),
-            NodeSend::Samples(_) => unreachable!("a frame"),
+            NodeSend::Samples(_) | NodeSend::Cycles(_) => unreachable!("a frame"),
         }
     }
 

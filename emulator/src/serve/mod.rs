@@ -13,6 +13,10 @@
 //! - [`wind_down`]: how either loop ends: the node's last frames, the linger, and the end on
 //!   a link error (coils zeroed, last frames, reason).
 //! - [`misbehaviour`]: deliberately non-conforming nodes for conformance tests (lockstep).
+//! - [`recording`]: a recorded session (`fsm.log`, `sensor.ild`) read into periods (no I/O
+//!   but reading the folder).
+//! - [`replay_node`]: the recorded session answering the controller in lockstep, its commands
+//!   compared with the recorded ones (no I/O).
 //!
 //! The process speaks on stdout in JSON lines: `{"event":"ready",...}` once the links are
 //! open (with the paths of any pty it created), and `{"event":"summary",...}` at the end.
@@ -23,6 +27,8 @@ pub mod lockstep_node;
 pub mod mirror_node;
 pub mod misbehaviour;
 pub mod realtime;
+pub mod recording;
+pub mod replay_node;
 pub mod sensor_commands;
 pub mod sensor_port;
 pub mod wind_down;
@@ -43,6 +49,8 @@ use crate::plant::Plant;
 use crate::scene::Scene;
 use crate::sensor_faults::SensorFaultModel;
 use mirror_node::MirrorNode;
+use recording::{RecordedClock, Recording};
+use replay_node::ReplayNode;
 use scanhil_protocol::fault_injection::SensorFaults;
 use scanhil_protocol::ild::command::LineEnding;
 use sensor_port::SensorPort;
@@ -97,6 +105,9 @@ pub struct ServeConfig {
     pub realtime: RealtimeOptions,
     /// Real time: how long the wake-up probe runs before the ready line, s (0: not at all).
     pub probe_s: f64,
+    /// Serve this recorded session's folder instead of emulating the scene's plant
+    /// ([`replay_node`]); the scene gives the control period and the sensor's settings.
+    pub replay: Option<PathBuf>,
 }
 
 impl ServeConfig {
@@ -133,6 +144,20 @@ impl ServeConfig {
                 "misbehave",
                 "the non-conforming nodes run in lockstep only, not with --timing realtime",
             ));
+        }
+        if self.replay.is_some() {
+            let refused = match (self.timing, &self.misbehave, &self.sensor_faults) {
+                (TimingMode::Realtime, ..) => Some(("timing", "lockstep only, not realtime")),
+                (_, Some(_), _) => Some(("misbehave", "no non-conforming node")),
+                (_, _, Some(_)) => Some((
+                    "sensor_faults",
+                    "no sensor faults (it serves what was recorded)",
+                )),
+                _ => None,
+            };
+            if let Some((field, what)) = refused {
+                return Err(Invalid::new(field, format!("a replay takes {what}")));
+            }
         }
         Ok(())
     }
@@ -245,10 +270,17 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
     config
         .check(plant.period_s())
         .map_err(Invalid::as_own_flag)?;
+    // A recording that cannot be served is refused before any link opens.
+    let recording = config.replay.as_deref().map(Recording::read).transpose()?;
     // What each part costs, measured before any link opens (the plant that runs is not
-    // touched).
-    let part_costs = crate::part_cost::measure(&scene, crate::part_cost::CostTiming::default())
-        .with_context(|| format!("timing the parts of {}", config.scene.display()))?;
+    // touched); a replay runs no part.
+    let part_costs = match recording {
+        None => Some(
+            crate::part_cost::measure(&scene, crate::part_cost::CostTiming::default())
+                .with_context(|| format!("timing the parts of {}", config.scene.display()))?,
+        ),
+        Some(_) => None,
+    };
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -283,6 +315,7 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
                 .then(|| scene.sensor.unwrap_or_default().measuring_rate_hz),
             "active_parts": plant.active_parts(),
             "misbehave": config.misbehave,
+            "replay": config.replay,
         });
         let Some(fsm_uri) = config.fsm.as_deref() else {
             bail!("--fsm is required: the mirror node clocks the sensor in both timing modes");
@@ -303,44 +336,110 @@ pub fn serve(config: &ServeConfig) -> anyhow::Result<ServeOutcome> {
         ready["sensor"] = sensor_name.into();
         println_flushed(&ready)?;
         let mut links = ServeLinks { fsm, sensor };
-        let mut node = MirrorNode::new(plant);
-        if let Some(faults) = &config.sensor_faults {
-            let rate_hz = scene.sensor.unwrap_or_default().measuring_rate_hz;
-            node =
-                node.with_sensor_faults(SensorFaultModel::new(faults.clone(), scene.seed, rate_hz));
-        }
-        let served = match config.timing {
-            TimingMode::Lockstep => lockstep::run(&mut node, &mut links, config).await,
-            TimingMode::Realtime => realtime::run(&mut node, &mut links, config).await,
-        };
-        let mut report = match served {
-            Ok(report) => report,
-            Err(error) => wind_down::end_on_link_error(&mut node, &mut links, error).await?,
+        let rate_hz = scene.sensor.unwrap_or_default().measuring_rate_hz;
+        let (mut report, mut summary, declared_clock) = match recording {
+            Some(recording) => {
+                replay(recording, plant.period_s(), rate_hz, &mut links, config).await?
+            }
+            None => {
+                let (report, summary) = emulate(plant, &scene, &mut links, config).await?;
+                (report, summary, None)
+            }
         };
         if let (Some(scheduling), Some(timing)) = (scheduling_report, report.timing.as_object_mut())
         {
             timing.insert("scheduling".into(), scheduling);
         }
-        let summary = serde_json::json!({
-            "event": "summary",
-            "outcome": report.outcome,
-            "ended_by": report.ended_by,
-            "node": node.counters(),
-            "final_state": node.state(),
-            "held_coil_currents_a": node.held_command_a(),
-            "link": link_summary(&links.fsm),
-            "sensor": links.sensor.summary(),
-            "sensor_faults": node.sensor_fault_counts(),
-            "parts": part_costs,
-            "timing": report.timing,
-            "error": report.error,
-        });
-        println_flushed(&summary)?;
+        let mut sensor = serde_json::json!(links.sensor.summary());
+        if let (Some(clock), Some(sensor)) = (declared_clock, sensor.as_object_mut()) {
+            // A replay declares the clock the recording's host used.
+            sensor.insert("counter_zero_s".into(), clock.counter_zero_s.into());
+            sensor.insert("first_sent_counter".into(), clock.first_counter.into());
+        }
+        summary.extend([
+            ("event".to_owned(), "summary".into()),
+            ("outcome".to_owned(), serde_json::json!(report.outcome)),
+            ("ended_by".to_owned(), serde_json::json!(report.ended_by)),
+            ("link".to_owned(), link_summary(&links.fsm)),
+            ("sensor".to_owned(), sensor),
+            ("parts".to_owned(), serde_json::json!(part_costs)),
+            ("timing".to_owned(), std::mem::take(&mut report.timing)),
+            ("error".to_owned(), serde_json::json!(report.error)),
+        ]);
+        println_flushed(&serde_json::Value::Object(summary))?;
         if let Some(error) = &report.error {
             eprintln!("scanhil-emulator: {error}; coil currents zeroed");
         }
         Ok(report.outcome)
     })
+}
+
+/// The summary's fields a node adds (its counters, final state, held currents).
+type NodeSummary = serde_json::Map<String, serde_json::Value>;
+
+/// Serves the scene's emulated plant in the timing mode asked.
+async fn emulate(
+    plant: Plant,
+    scene: &Scene,
+    links: &mut ServeLinks,
+    config: &ServeConfig,
+) -> anyhow::Result<(LoopReport, NodeSummary)> {
+    let mut node = MirrorNode::new(plant);
+    if let Some(faults) = &config.sensor_faults {
+        let rate_hz = scene.sensor.unwrap_or_default().measuring_rate_hz;
+        node = node.with_sensor_faults(SensorFaultModel::new(faults.clone(), scene.seed, rate_hz));
+    }
+    let served = match config.timing {
+        TimingMode::Lockstep => lockstep::run(&mut node, links, config).await,
+        TimingMode::Realtime => realtime::run(&mut node, links, config).await,
+    };
+    let report = match served {
+        Ok(report) => report,
+        Err(error) => wind_down::end_on_link_error(&mut node, links, error).await?,
+    };
+    let summary = NodeSummary::from_iter([
+        ("node".to_owned(), serde_json::json!(node.counters())),
+        ("final_state".to_owned(), serde_json::json!(node.state())),
+        (
+            "held_coil_currents_a".to_owned(),
+            serde_json::json!(node.held_command_a()),
+        ),
+        (
+            "sensor_faults".to_owned(),
+            serde_json::json!(node.sensor_fault_counts()),
+        ),
+    ]);
+    Ok((report, summary))
+}
+
+/// Serves a recorded session in lockstep ([`ReplayNode`]); its summary holds the comparison
+/// of the controller's commands with the recorded ones (`replay`). Returns the sensor clock to
+/// declare too: the recording host's, when its report gave it.
+async fn replay(
+    recording: Recording,
+    period_s: f64,
+    measuring_rate_hz: f64,
+    links: &mut ServeLinks,
+    config: &ServeConfig,
+) -> anyhow::Result<(LoopReport, NodeSummary, Option<RecordedClock>)> {
+    let clock = recording.clock;
+    let mut node = ReplayNode::new(recording, period_s, measuring_rate_hz);
+    let report = match lockstep::run_answers(&mut node, links, config).await {
+        Ok(report) => report,
+        Err(error) => {
+            wind_down::end_on_link_error_with(links, error, || node.on_link_failure()).await?
+        }
+    };
+    let summary = NodeSummary::from_iter([
+        ("node".to_owned(), serde_json::json!(node.counters())),
+        ("final_state".to_owned(), serde_json::json!(node.state())),
+        (
+            "held_coil_currents_a".to_owned(),
+            serde_json::json!(node.held_command_a()),
+        ),
+        ("replay".to_owned(), serde_json::json!(node.comparison())),
+    ]);
+    Ok((report, summary, clock))
 }
 
 /// Loads the scene at `path`, `seed` (if given) overriding its own, and builds its plant, as

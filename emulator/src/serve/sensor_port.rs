@@ -311,6 +311,23 @@ impl SensorPort {
         }
     }
 
+    /// Queues, without writing, a recorded session's output cycles (raw values) on the ILD
+    /// line as they are: no settings shape them and no line paces them (they are the bytes a
+    /// host once received); [`SensorPort::flush`] writes them. Elsewhere they are dropped (a
+    /// sensor on CAN was recorded as the mirror link's Distance frames).
+    ///
+    /// # Errors
+    /// Link errors.
+    pub fn write_cycles(&mut self, cycles: &[Vec<u32>]) -> Result<(), LinkError> {
+        if let SensorPort::Ild(port) = self {
+            for values in cycles {
+                port.link.queue_cycle(values)?;
+                port.clock.samples += 1;
+            }
+        }
+        Ok(())
+    }
+
     /// Queues, without writing, the ILD line's cycles that have arrived by loop time
     /// `until_s`, in order: unless [`lossless`](SensorPort::lossless), while the host has not
     /// read what was written before, they are dropped (counted). On CAN the offered samples'

@@ -15,6 +15,7 @@ use std::time::Duration;
 
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::link::LinkError;
+use scanhil_protocol::message::MessageError;
 
 use super::lockstep_node::last_frames;
 use super::mirror_node::MirrorNode;
@@ -32,6 +33,24 @@ pub async fn end_on_link_error(
     links: &mut ServeLinks,
     error: anyhow::Error,
 ) -> anyhow::Result<LoopReport> {
+    end_on_link_error_with(links, error, || {
+        let fault = node.on_link_failure();
+        last_frames(node, fault)
+    })
+    .await
+}
+
+/// Ends the run on `error` as [`end_on_link_error`] does, for any node: on a failure,
+/// `on_failure` zeroes the node's coils and gives its last frames (a replayed session's are
+/// [`super::replay_node::ReplayNode::on_link_failure`]).
+///
+/// # Errors
+/// As [`end_on_link_error`].
+pub async fn end_on_link_error_with(
+    links: &mut ServeLinks,
+    error: anyhow::Error,
+    on_failure: impl FnOnce() -> Result<[CanFrame; 2], MessageError>,
+) -> anyhow::Result<LoopReport> {
     let Some(link_error) = error.downcast_ref::<LinkError>() else {
         return Err(error);
     };
@@ -45,8 +64,7 @@ pub async fn end_on_link_error(
         });
     }
     let reason = scanhil_protocol::error_text::chain_text(&*error);
-    let fault = node.on_link_failure();
-    let frames = last_frames(node, fault)?;
+    let frames = on_failure()?;
     let lingers = links.fsm.is_slcan();
     let wound_down = wind_down(links, &frames, lingers).await;
     Ok(LoopReport {

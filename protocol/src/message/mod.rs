@@ -252,6 +252,23 @@ pub const U18_MAX: u32 = (1 << 18) - 1;
 /// The largest 24-bit unsigned value (node clocks, status step).
 pub const U24_MAX: u32 = (1 << 24) - 1;
 
+/// Whether a 16-bit sequence counter `seq` (CoilCommand, AngleReading) is that of period
+/// `next` (counters wrap at 2^16): a recording's reader checks that no period is missing. The
+/// error names `what`, the counter found and the one expected.
+///
+/// # Errors
+/// The text of the mismatch.
+pub fn check_period_counter(what: &str, seq: u16, next: usize) -> Result<(), String> {
+    let expected = next as u16;
+    if seq == expected {
+        Ok(())
+    } else {
+        Err(format!(
+            "{what} counter {seq} where period {next} (counter {expected}) was next"
+        ))
+    }
+}
+
 /// Rounds `value / unit` to the nearest count, saturated to the 24-bit signed range; NaN
 /// gives 0.
 fn saturating_i24(value: f64, unit: f64) -> i32 {
@@ -735,6 +752,16 @@ pub fn decode_signals(frame: &CanFrame) -> Result<DecodedSignals, MessageError> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_period_counter_wraps_at_2_to_the_16() {
+        assert_eq!(check_period_counter("AngleReading", 0, 65_536), Ok(()));
+        assert_eq!(check_period_counter("AngleReading", 4, 65_540), Ok(()));
+        assert_eq!(
+            check_period_counter("CoilCommand", 1, 65_536),
+            Err("CoilCommand counter 1 where period 65536 (counter 0) was next".to_owned())
+        );
+    }
     use crate::ild::IldError;
 
     fn examples() -> Vec<Message> {
