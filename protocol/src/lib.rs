@@ -21,6 +21,8 @@
 //! - [`loop_timing`]: period jitter and overruns of a real-time loop, as both ends report them.
 //! - [`loop_limits`]: the timing limits both ends hold a run to (duration, answer allowance,
 //!   watchdog, probe, heartbeat).
+//! - [`socketcan`]: what the SocketCAN link decides, pure: retries on a full transmit queue,
+//!   the interface's bit rate and state checked, the socket's dropped frames counted.
 //! - [`validation`]: how every program says a value cannot run: the field or flag, the file,
 //!   the value and the allowed range.
 //! - [`whole_file`]: output files written under a temporary name and renamed once whole.
@@ -45,6 +47,7 @@ pub mod plant_units;
 #[cfg(feature = "links")]
 pub mod scheduling;
 pub mod slcan;
+pub mod socketcan;
 pub mod stdout;
 pub mod validation;
 pub mod whole_file;

@@ -13,8 +13,11 @@ mod vcan {
     use scanhil_protocol::can::{CanFrame, CanId};
     use scanhil_protocol::candump;
     use scanhil_protocol::link::{
-        CanCapture, CanLink, CaptureClock, LinkUri, RecvError, Role, VirtualClock, Watchdog,
+        ArrivalSource, CanCapture, CanLink, CaptureClock, LinkUri, RecvError, Role, VirtualClock,
+        Watchdog,
     };
+    use scanhil_protocol::socketcan::interface_state::InterfaceReading;
+    use scanhil_protocol::socketcan::send_retry::RetryCounts;
 
     /// The tests share one bus: one at a time, or they would see each other's frames.
     static BUS: tokio::sync::Mutex<()> = tokio::sync::Mutex::const_new(());
@@ -98,6 +101,113 @@ mod vcan {
             .map(|line| candump::parse_line(line).unwrap().frame)
             .collect();
         assert_eq!(logged, frames());
+    }
+
+    /// What netlink says of a vcan: up, and no bit rate, state or error counters; the link
+    /// says so and keeps the URI's bit rate for the bus-load check alone. Nothing was dropped
+    /// or retried on a quiet bus.
+    #[tokio::test]
+    async fn vcan_reports_no_controller_and_says_so() {
+        let _bus = BUS.lock().await;
+        let (_a, b) = two_nodes().await;
+        let report = b.report().socketcan.expect("a SocketCAN link's report");
+        assert_eq!(
+            report.interface,
+            Some(InterfaceReading {
+                is_up: true,
+                ..InterfaceReading::default()
+            })
+        );
+        assert_eq!(
+            report.notes,
+            [
+                "interface vcan0 reports no bit rate, state or error counters (a virtual \
+              interface, vcan, has none): the URI's @BITRATE 1000000 bit/s is used for the \
+              bus-load check only"
+            ]
+        );
+        assert_eq!(report.dropped_frames, Some(0));
+        assert_eq!(report.send_retries, RetryCounts::default());
+        assert!(
+            b.open_summary()
+                .contains("a virtual interface, vcan, has none")
+        );
+    }
+
+    /// An interface that is down is refused when the link opens, naming it and the command
+    /// that brings it up (a second vcan made here, left down).
+    #[tokio::test]
+    async fn vcan_down_is_refused_at_open() {
+        use scanhil_protocol::link::LinkError;
+        use socketcan::nl::CanInterface;
+        let made = CanInterface::create_vcan("vcandown0", None)
+            .expect("creating a vcan needs root and the vcan module (the VM has both)");
+        let opened = CanLink::open(&"socketcan:vcandown0".parse().unwrap(), Role::Host).await;
+        made.delete().expect("deleting the vcan made here");
+        let error = opened.expect_err("a down interface opened");
+        assert!(matches!(error, LinkError::Interface { .. }), "{error}");
+        assert_eq!(
+            error.to_string(),
+            "cannot use socketcan:vcandown0: interface vcandown0 is down (bring it up: `sudo ip \
+             link set up vcandown0`)"
+        );
+    }
+
+    /// The arrival of a frame is the kernel's receive time: a frame read 20 ms after it was
+    /// sent arrived 20 ms before its read, by `recv` and by `try_recv` alike.
+    #[tokio::test]
+    async fn vcan_arrivals_are_the_kernels_receive_times() {
+        let _bus = BUS.lock().await;
+        let (mut a, mut b) = two_nodes().await;
+        let frame = CanFrame::new(CanId::standard(0x110).unwrap(), &[1]).unwrap();
+        for nonblocking in [false, true] {
+            a.send(&frame).await.unwrap();
+            std::thread::sleep(Duration::from_millis(20));
+            let got = if nonblocking {
+                b.try_recv().unwrap().expect("a frame already there")
+            } else {
+                b.recv().await.unwrap()
+            };
+            assert_eq!(got, frame);
+            let arrival = b.last_arrival().unwrap();
+            assert_eq!(arrival.source, ArrivalSource::Kernel);
+            let age = arrival.read_at - arrival.on_bus_at;
+            assert!(
+                (Duration::from_millis(19)..Duration::from_secs(1)).contains(&age),
+                "read {age:?} after the kernel's stamp"
+            );
+        }
+    }
+
+    /// A receiver that does not read while far more frames come than its socket's receive
+    /// queue holds: the kernel drops the rest, and the link counts every one of them.
+    #[tokio::test]
+    async fn vcan_frames_the_kernel_dropped_are_counted() {
+        let _bus = BUS.lock().await;
+        let (mut a, mut b) = two_nodes().await;
+        const SENT: u32 = 5000;
+        for k in 0..SENT {
+            let frame = CanFrame::new(CanId::standard(0x100).unwrap(), &k.to_le_bytes()).unwrap();
+            a.send(&frame).await.unwrap();
+        }
+        let dropped = b
+            .report()
+            .socketcan
+            .and_then(|report| report.dropped_frames)
+            .expect("the drop counter");
+        let mut received = 0;
+        while b.try_recv().unwrap().is_some() {
+            received += 1;
+        }
+        assert!(
+            dropped > 0 && received > 0,
+            "{received} received, {dropped} dropped"
+        );
+        assert_eq!(
+            received + dropped,
+            SENT,
+            "{received} received, {dropped} dropped"
+        );
     }
 
     /// `CAN_ERR_ACK` and `CAN_ERR_BUSOFF` (linux/can/error.h).

@@ -114,6 +114,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         duration_s: 0.0,
         record_dir: None,
         recording: Default::default(),
+        bus_bitrate: None,
         sensor_expectation: None,
         replay: None,
     };

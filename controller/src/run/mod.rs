@@ -85,7 +85,8 @@ use std::time::Duration;
 
 use anyhow::{Context, bail};
 use scanhil_protocol::link::role::Role;
-use scanhil_protocol::link::{CanCapture, CanLink, CaptureClock, PtyPair, VirtualClock};
+use scanhil_protocol::link::{CanCapture, CanLink, CaptureClock, LinkUri, PtyPair, VirtualClock};
+use scanhil_protocol::socketcan::interface_state::{self, ExpectedBitrate};
 use scanhil_protocol::validation::{Invalid, InvalidValue};
 
 use emulator_process::{EmulatorProcess, locate_emulator};
@@ -379,6 +380,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             duration_s: periods as f64 * period_s,
             record_dir: Some(out_dir.clone()),
             recording: scenario.recording.clone(),
+            bus_bitrate: rig.bus.map(|bus| bus.bitrate_bps.round() as u32),
             sensor_expectation: rig.sensor,
             replay: options.replay.clone(),
         };
@@ -559,6 +561,9 @@ pub struct LinkPlan {
     pub record_dir: Option<PathBuf>,
     /// How `fsm.log` is stamped and which interface it names.
     pub recording: scenario::RecordingConfig,
+    /// The rig's bus bit rate, bit/s, checked against a SocketCAN interface's own (`None`:
+    /// the rig states no bus).
+    pub bus_bitrate: Option<u32>,
     /// The rig's sensor: configured and read back before the run, and an emulator started here
     /// must serve it at its rate (`None`: left as it is, not checked).
     pub sensor_expectation: Option<crate::rig::RigSensor>,
@@ -719,9 +724,10 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         (None, NodeLink::Uri(uri)) => CanLink::open(&uri.parse()?, Role::Host).await?,
         (None, NodeLink::Pty) => unreachable!("a pty link has its pair"),
     };
-    // An adapter given by path: say what it was found to be and what was set on it (the bit
-    // rate kept when the URI names none).
-    if matches!(plan.fsm, NodeLink::Uri(_)) && fsm.is_slcan() {
+    check_rig_bus(&fsm, &plan.fsm, plan.bus_bitrate)?;
+    // A link given by URI: say what it was found to be (an adapter's family and the bit rate
+    // set or kept; an interface's notes, such as a vcan's missing bit rate).
+    if matches!(plan.fsm, NodeLink::Uri(_)) {
         eprintln!("scanhil: {}", fsm.open_summary());
     }
     let clock = (timing.mode == TimingMode::Lockstep).then(VirtualClock::default);
@@ -775,6 +781,34 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         sensor_setup,
         plant,
     })
+}
+
+/// A SocketCAN interface whose bit rate is known must run at the rig's `bus_bitrate` (the URI's
+/// `@BITRATE`, when given, was checked as the link opened).
+///
+/// # Errors
+/// The two rates and the commands that set the interface.
+fn check_rig_bus(fsm: &CanLink, link: &NodeLink, bus_bitrate: Option<u32>) -> anyhow::Result<()> {
+    let NodeLink::Uri(uri) = link else {
+        return Ok(());
+    };
+    let Ok(LinkUri::SocketCan { iface, .. }) = uri.parse() else {
+        return Ok(());
+    };
+    let actual = fsm
+        .report()
+        .socketcan
+        .and_then(|report| report.interface)
+        .and_then(|interface| interface.bitrate);
+    if let (Some(actual), Some(bitrate)) = (actual, bus_bitrate) {
+        let expected = ExpectedBitrate {
+            bitrate,
+            source: "the rig's bus.bitrate_bps",
+        };
+        interface_state::check_bitrate(&iface, actual, expected)
+            .map_err(|detail| anyhow::anyhow!("cannot use {}: {detail}", fsm.name()))?;
+    }
+    Ok(())
 }
 
 /// Waits for the emulator to exit (killing it after a grace period) and returns its exit

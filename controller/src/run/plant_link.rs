@@ -75,6 +75,7 @@ impl LinkedPlant {
             duration_s: 0.0,
             record_dir: record_dir.map(Path::to_owned),
             recording: Default::default(),
+            bus_bitrate: None,
             sensor_expectation: None,
             replay: None,
         };

@@ -12,7 +12,7 @@ use super::pty::PtyPair;
 use super::role::Role;
 use super::slcan::device::EmulatedAdapter;
 use super::slcan::{SlcanCounters, SlcanPort};
-use super::socketcan::SocketCanPort;
+use super::socketcan::{SocketCanPort, SocketCanReport};
 use super::uri::{LinkUri, SLCAN_SERIAL_BAUD};
 use super::watchdog::{LinkTimeout, Watchdog};
 use crate::can::CanFrame;
@@ -43,6 +43,9 @@ pub struct LinkReport {
     pub bus_bitrate: Option<u32>,
     /// SLCAN: the adapter and what the link set on it.
     pub slcan: Option<SlcanReport>,
+    /// SocketCAN: the interface as netlink reported it, notes, send retries on a full
+    /// transmit queue, frames the kernel dropped.
+    pub socketcan: Option<SocketCanReport>,
     /// Traffic and trouble.
     pub stats: LinkStats,
 }
@@ -99,8 +102,8 @@ impl CanLink {
     pub async fn open(uri: &LinkUri, role: Role) -> LinkResult<CanLink> {
         let name = uri.to_string();
         let transport = match uri {
-            LinkUri::SocketCan { iface, .. } => {
-                Transport::SocketCan(SocketCanPort::open(iface, &name)?)
+            LinkUri::SocketCan { iface, bitrate } => {
+                Transport::SocketCan(SocketCanPort::open(iface, &name, *bitrate)?)
             }
             LinkUri::Slcan {
                 path,
@@ -191,8 +194,8 @@ impl CanLink {
     /// What the link is and what crossed it so far, for a report.
     #[must_use]
     pub fn report(&self) -> LinkReport {
-        let (transport, slcan) = match &self.transport {
-            Transport::SocketCan(_) => ("socketcan", None),
+        let (transport, slcan, socketcan) = match &self.transport {
+            Transport::SocketCan(port) => ("socketcan", None, Some(port.report())),
             Transport::Slcan(port) => (
                 "slcan",
                 Some(SlcanReport {
@@ -200,6 +203,7 @@ impl CanLink {
                     bitrate_set: port.bitrate(),
                     adapter_answers: port.adapter_answers(),
                 }),
+                None,
             ),
         };
         LinkReport {
@@ -207,6 +211,7 @@ impl CanLink {
             transport,
             bus_bitrate: self.bus_bitrate,
             slcan,
+            socketcan,
             stats: self.stats(),
         }
     }
@@ -216,7 +221,14 @@ impl CanLink {
     #[must_use]
     pub fn open_summary(&self) -> String {
         match &self.transport {
-            Transport::SocketCan(_) => format!("{}: SocketCAN interface", self.name),
+            Transport::SocketCan(port) => {
+                let notes = port.report().notes;
+                if notes.is_empty() {
+                    format!("{}: SocketCAN interface", self.name)
+                } else {
+                    format!("{}: SocketCAN interface; {}", self.name, notes.join("; "))
+                }
+            }
             Transport::Slcan(port) => {
                 let bitrate = match port.bitrate() {
                     Some(bits) => format!(

@@ -65,6 +65,30 @@ pub enum LinkError {
         /// The command it refused, without the CR.
         command: String,
     },
+    /// SocketCAN: the interface cannot carry the run as netlink reports it (down, another
+    /// bit rate than the URI's, a controller bus-off or stopped).
+    #[error("cannot use {link}: {detail}")]
+    Interface {
+        /// The link's URI.
+        link: String,
+        /// What is wrong and what to do about it.
+        detail: String,
+    },
+    /// SocketCAN: the interface's transmit queue stayed full (`ENOBUFS`) through every retry
+    /// ([`crate::socketcan::send_retry`]).
+    #[error(
+        "{link}: the interface's transmit queue stayed full (ENOBUFS) through {retries} \
+         retries over {waited:?}: nothing acknowledges the frames (no other node powered, no \
+         termination), or the queue is short (`ip link set IFACE txqueuelen 1000`)"
+    )]
+    QueueFull {
+        /// The link's URI.
+        link: String,
+        /// Retries made.
+        retries: u32,
+        /// How long they waited in all.
+        waited: Duration,
+    },
     /// A reply did not arrive in time.
     #[error("{link}: no reply to `{command}` within {waited:?}")]
     NoReply {

@@ -7,7 +7,7 @@
 
 use std::fs::{File, OpenOptions};
 use std::io::{self, Read, Write};
-use std::os::fd::OwnedFd;
+use std::os::fd::{AsRawFd, OwnedFd};
 use std::os::unix::fs::OpenOptionsExt;
 use std::path::Path;
 
@@ -270,14 +270,16 @@ impl SerialLine {
     }
 }
 
-/// Registers `file` with tokio's reactor.
+/// Registers `owner` of a descriptor (a [`File`], the SocketCAN link's socket) with tokio's
+/// reactor.
 ///
 /// `AsyncFd::new` is deprecated because it cannot check, for an arbitrary `T`, that
 /// `as_raw_fd()` stays the same open descriptor for the `AsyncFd`'s whole life; the unsafe
-/// `AsyncFd::register` makes the caller promise it. A [`File`] owns its descriptor and returns
-/// that same one until dropped, which is exactly that promise, and this crate forbids unsafe
-/// code, so the safe (deprecated) constructor is the right call here.
+/// `AsyncFd::register` makes the caller promise it. A type that owns its descriptor, as a
+/// [`File`] and a `socketcan` socket do, returns that same one until dropped, which is exactly
+/// that promise, and this crate forbids unsafe code, so the safe (deprecated) constructor is
+/// the right call here. Only ever pass such an owner.
 #[allow(deprecated)]
-fn register(file: File) -> io::Result<AsyncFd<File>> {
-    AsyncFd::new(file)
+pub(super) fn register<T: AsRawFd>(owner: T) -> io::Result<AsyncFd<T>> {
+    AsyncFd::new(owner)
 }

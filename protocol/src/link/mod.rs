@@ -38,5 +38,6 @@ pub use ild::{IldCycle, IldCycleAssembler, IldLink, IldRequest};
 pub use line::SerialLine;
 pub use pty::PtyPair;
 pub use role::Role;
+pub use socketcan::SocketCanReport;
 pub use uri::{LinkUri, UriError};
 pub use watchdog::{LinkTimeout, Watchdog};

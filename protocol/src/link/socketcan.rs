@@ -1,31 +1,71 @@
 //! SocketCAN: a kernel CAN interface (`vcan0`, a real `can0`) through the `socketcan` crate
-//! under tokio. The socket is opened in CAN FD mode, so it carries classical and FD frames
-//! (FD frames need an FD-capable interface: `ip link set can0 type can bitrate 1000000
-//! dbitrate 5000000 fd on`).
+//! under tokio: the crate's blocking socket, non-blocking in an [`AsyncFd`]. The socket is
+//! opened in CAN FD mode, so it carries classical and FD frames (FD frames need an FD-capable
+//! interface: `ip link set can0 type can bitrate 1000000 dbitrate 5000000 fd on`).
 //!
 //! The socket subscribes to the kernel's error frames (`CAN_ERR_FLAG`): each is classified
 //! ([`classify_error_frame`]); bus-off ends the link's receive with [`LinkError::BusOff`]
 //! (the controller has left the bus, the run cannot go on), any other error condition
 //! (error-passive, no ACK, a protocol violation, a lost arbitration) is counted
 //! ([`SocketCanPort::error_frames`]) and receiving goes on.
+//!
+//! What the link does beyond frames (the decisions are pure, in [`crate::socketcan`]):
+//! - at open, reads the interface through netlink (the crate's `CanInterface`: up, bit rate,
+//!   sample point, controller state, error counters) and refuses one that cannot carry the run
+//!   ([`interface_state::check`]: another bit rate than the URI's `@BITRATE`, down, bus-off);
+//! - stamps each received frame with the kernel's receive time (`SO_TIMESTAMPNS`), its
+//!   [`Arrival`];
+//! - retries a send the kernel refused with `ENOBUFS` (a full transmit queue), bounded
+//!   ([`send_retry::ENOBUFS_RETRY`]), and counts the retries;
+//! - reports the frames the kernel dropped because the socket's receive queue was full (its
+//!   `sk_drops`, read with `SO_MEMINFO`: [`drop_count`]).
 
 use std::io;
+use std::time::SystemTime;
 
 use socketcan::id::FdFlags;
-use socketcan::{
-    CanAnyFrame, CanErrorFrame, EmbeddedFrame, ErrorCause, Id, SocketOptions, tokio::CanFdSocket,
-};
+use socketcan::nl::{CanInterface, CanState};
+use socketcan::{CanAnyFrame, CanErrorFrame, EmbeddedFrame, ErrorCause, Id, Socket, SocketOptions};
+use tokio::io::Interest;
+use tokio::io::unix::AsyncFd;
+use tokio::time::Instant;
 
 use super::arrival::Arrival;
 use super::error::{LinkError, LinkResult};
+use super::line::register;
 use crate::can::{CanFrame, CanId, FrameFormat};
+use crate::socketcan::drop_count::{self, DropCount};
+use crate::socketcan::interface_state::{
+    self, ControllerState, ErrorCounters, ExpectedBitrate, InterfaceReading,
+};
+use crate::socketcan::send_retry::{ENOBUFS_RETRY, NextStep, RetryCounts};
 
 /// An open SocketCAN interface.
 #[derive(Debug)]
 pub struct SocketCanPort {
     name: String,
-    socket: CanFdSocket,
+    socket: AsyncFd<socketcan::CanFdSocket>,
     error_frames: u64,
+    send_retries: RetryCounts,
+    interface: Option<InterfaceReading>,
+    notes: Vec<String>,
+    drops: Option<DropCount>,
+}
+
+/// What a SocketCAN link found and did beyond its frames, for a run's report.
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct SocketCanReport {
+    /// The interface as netlink reported it at open (`None`: netlink could not be read, see
+    /// `notes`).
+    pub interface: Option<InterfaceReading>,
+    /// What could not be checked, or deserves a look (a vcan's missing bit rate, an
+    /// error-passive controller, an unreadable counter).
+    pub notes: Vec<String>,
+    /// Sends the kernel refused with `ENOBUFS` (a full transmit queue) and their retries.
+    pub send_retries: RetryCounts,
+    /// Frames the kernel dropped since the socket opened because its receive queue was full
+    /// (`None`: the counter could not be read, see `notes`).
+    pub dropped_frames: Option<u32>,
 }
 
 /// What an error frame from the kernel means for the loop.
@@ -51,28 +91,72 @@ pub fn classify_error_frame(frame: &CanErrorFrame) -> BusEvent {
 }
 
 impl SocketCanPort {
-    /// Opens `iface` (`name` is the link's URI, for errors).
+    /// Opens `iface` (`name` is the link's URI, for errors), expecting the bus at `bitrate`
+    /// when the URI gave one.
     ///
     /// # Errors
     /// [`LinkError::Open`] naming the link, the OS error and what to do about it (no such
-    /// interface; no CAN in this kernel).
-    pub fn open(iface: &str, name: &str) -> LinkResult<Self> {
-        let socket = CanFdSocket::open(iface).map_err(|source| LinkError::Open {
-            link: name.to_owned(),
-            hint: open_hint(iface, &source),
-            source,
-        })?;
+    /// interface; no CAN in this kernel); [`LinkError::Interface`] for an interface that
+    /// cannot carry the run ([`interface_state::check`]).
+    pub fn open(iface: &str, name: &str, bitrate: Option<u32>) -> LinkResult<Self> {
+        let open_error = |hint: String| {
+            let link = name.to_owned();
+            move |source: io::Error| LinkError::Open { link, source, hint }
+        };
+        let socket = socketcan::CanFdSocket::open(iface)
+            .map_err(|source| open_error(open_hint(iface, &source))(source))?;
+        socket.set_error_filter_accept_all().map_err(open_error(
+            "; subscribing to the bus's error frames".to_owned(),
+        ))?;
+        socket.set_recv_timestamp(true).map_err(open_error(
+            "; asking for receive timestamps (SO_TIMESTAMPNS)".to_owned(),
+        ))?;
         socket
-            .set_error_filter_accept_all()
-            .map_err(|source| LinkError::Open {
-                link: name.to_owned(),
-                hint: "; subscribing to the bus's error frames".to_owned(),
-                source,
-            })?;
+            .set_nonblocking(true)
+            .map_err(open_error("; making the socket non-blocking".to_owned()))?;
+        let mut notes = Vec::new();
+        let interface = match read_interface(iface) {
+            Ok(reading) => {
+                let expected = bitrate.map(|bitrate| ExpectedBitrate {
+                    bitrate,
+                    source: "the URI's @BITRATE",
+                });
+                notes = interface_state::check(iface, &reading, expected).map_err(|detail| {
+                    LinkError::Interface {
+                        link: name.to_owned(),
+                        detail,
+                    }
+                })?;
+                Some(reading)
+            }
+            Err(error) => {
+                notes.push(format!(
+                    "interface {iface} could not be read through netlink ({error}): its bit \
+                     rate and state are not checked"
+                ));
+                None
+            }
+        };
+        let drops = match dropped_so_far(&socket) {
+            Ok(counter) => Some(DropCount::starting_at(counter)),
+            Err(error) => {
+                notes.push(format!(
+                    "the socket's dropped-frame counter could not be read (SO_MEMINFO: {error})"
+                ));
+                None
+            }
+        };
+        let socket = register(socket).map_err(open_error(
+            "; registering the socket with the I/O runtime".to_owned(),
+        ))?;
         Ok(SocketCanPort {
             name: name.to_owned(),
             socket,
             error_frames: 0,
+            send_retries: RetryCounts::default(),
+            interface,
+            notes,
+            drops,
         })
     }
 
@@ -82,19 +166,62 @@ impl SocketCanPort {
         self.error_frames
     }
 
-    /// Sends one frame, waiting while the socket's queue is full.
+    /// The interface as read at open, what was noted, the send retries and the frames the
+    /// kernel dropped so far.
+    #[must_use]
+    pub fn report(&self) -> SocketCanReport {
+        let dropped_frames = self.drops.and_then(|mut drops| {
+            drops.observe(dropped_so_far(self.socket.get_ref()).ok()?);
+            Some(drops.dropped())
+        });
+        SocketCanReport {
+            interface: self.interface,
+            notes: self.notes.clone(),
+            send_retries: self.send_retries,
+            dropped_frames,
+        }
+    }
+
+    /// Sends one frame, waiting while the socket's buffer is full; a full transmit queue
+    /// (`ENOBUFS`) is retried as [`ENOBUFS_RETRY`] says.
     ///
     /// # Errors
-    /// [`LinkError::Io`] (e.g. an FD frame on a classical-only interface: "Invalid argument").
-    pub async fn send(&self, frame: &CanFrame) -> LinkResult<()> {
+    /// [`LinkError::QueueFull`] when the queue stayed full; [`LinkError::Io`] (e.g. an FD
+    /// frame on a classical-only interface: "Invalid argument").
+    pub async fn send(&mut self, frame: &CanFrame) -> LinkResult<()> {
         let frame = to_socketcan(frame).ok_or_else(|| LinkError::Unsupported {
             link: self.name.clone(),
             detail: format!("{frame:?}: the socketcan crate rejects it"),
         })?;
-        self.socket
-            .write_frame(&frame)
-            .await
-            .map_err(|source| self.io("write", source))
+        let mut retries = 0;
+        loop {
+            let sent = self
+                .socket
+                .async_io(Interest::WRITABLE, |socket| socket.write_frame(&frame))
+                .await;
+            let queue_full =
+                matches!(&sent, Err(e) if e.raw_os_error() == Some(nix::libc::ENOBUFS));
+            match ENOBUFS_RETRY.next_step(queue_full, retries) {
+                NextStep::Done => {
+                    if retries > 0 {
+                        self.send_retries.count(retries, sent.is_ok());
+                    }
+                    return sent.map_err(|source| self.io("write", source));
+                }
+                NextStep::RetryAfter(wait) => {
+                    tokio::time::sleep(wait).await;
+                    retries += 1;
+                }
+                NextStep::GiveUp => {
+                    self.send_retries.count(retries, false);
+                    return Err(LinkError::QueueFull {
+                        link: self.name.clone(),
+                        retries,
+                        waited: ENOBUFS_RETRY.total_wait(),
+                    });
+                }
+            }
+        }
     }
 
     /// Waits for the next data, remote or FD frame; error frames are counted. Cancel-safe.
@@ -104,13 +231,13 @@ impl SocketCanPort {
     /// [`LinkError::BusOff`] when the controller went bus-off.
     pub async fn recv(&mut self) -> LinkResult<(CanFrame, Arrival)> {
         loop {
-            let frame = self
+            let (frame, stamp) = self
                 .socket
-                .read_frame()
+                .async_io(Interest::READABLE, Socket::read_frame_with_timestamp)
                 .await
                 .map_err(|source| self.io("read", source))?;
             if let Some(frame) = self.accept(&frame)? {
-                return Ok((frame, Arrival::read(tokio::time::Instant::now())));
+                return Ok((frame, kernel_arrival(stamp)));
             }
         }
     }
@@ -130,16 +257,17 @@ impl SocketCanPort {
         Ok(from_socketcan(frame))
     }
 
-    /// The next frame if one is already there, without waiting.
+    /// The next frame if one is already there, without waiting (straight to the socket,
+    /// whatever the runtime last saw of its readiness).
     ///
     /// # Errors
     /// As [`SocketCanPort::recv`].
     pub fn try_recv(&mut self) -> LinkResult<Option<(CanFrame, Arrival)>> {
         loop {
-            match self.socket.try_read_frame() {
-                Ok(frame) => {
+            match self.socket.get_ref().read_frame_with_timestamp() {
+                Ok((frame, stamp)) => {
                     if let Some(frame) = self.accept(&frame)? {
-                        return Ok(Some((frame, Arrival::read(tokio::time::Instant::now()))));
+                        return Ok(Some((frame, kernel_arrival(stamp))));
                     }
                 }
                 Err(e) if e.kind() == io::ErrorKind::WouldBlock => return Ok(None),
@@ -155,6 +283,50 @@ impl SocketCanPort {
             source,
         }
     }
+}
+
+/// A frame read now that the kernel stamped `stamp` (wall clock) on receipt.
+fn kernel_arrival(stamp: SystemTime) -> Arrival {
+    Arrival::kernel(Instant::now(), SystemTime::now(), stamp)
+}
+
+/// The interface as netlink reports it.
+fn read_interface(iface: &str) -> Result<InterfaceReading, socketcan::Error> {
+    let details = CanInterface::open(iface)?.details()?;
+    let can = details.can;
+    Ok(InterfaceReading {
+        is_up: details.is_up,
+        bitrate: can.bit_timing.map(|timing| timing.bitrate),
+        sample_point_permille: can.bit_timing.map(|timing| timing.sample_point),
+        state: can.state.map(|state| match state {
+            CanState::ErrorActive => ControllerState::ErrorActive,
+            CanState::ErrorWarning => ControllerState::ErrorWarning,
+            CanState::ErrorPassive => ControllerState::ErrorPassive,
+            CanState::BusOff => ControllerState::BusOff,
+            CanState::Stopped => ControllerState::Stopped,
+            CanState::Sleeping => ControllerState::Sleeping,
+        }),
+        error_counters: can.berr_counter.map(|counter| ErrorCounters {
+            tx: counter.txerr,
+            rx: counter.rxerr,
+        }),
+    })
+}
+
+/// The socket's drop counter (`sk_drops`), through `SO_MEMINFO`.
+fn dropped_so_far(socket: &socketcan::CanFdSocket) -> io::Result<u32> {
+    let mut meminfo = [0u8; drop_count::SK_MEMINFO_VARS * 4];
+    let len = socket.get_socket_option_bytes(
+        nix::libc::SOL_SOCKET,
+        nix::libc::SO_MEMINFO,
+        &mut meminfo,
+    )?;
+    drop_count::drops_in_meminfo(&meminfo[..len]).ok_or_else(|| {
+        io::Error::new(
+            io::ErrorKind::InvalidData,
+            format!("{len} bytes, too few for the drop counter"),
+        )
+    })
 }
 
 /// What the operator can do about a failed open.
