@@ -16,7 +16,7 @@
 //! - stamps each received frame with the kernel's receive time (`SO_TIMESTAMPNS`), its
 //!   [`Arrival`];
 //! - retries a send the kernel refused with `ENOBUFS` (a full transmit queue), bounded
-//!   ([`send_retry::ENOBUFS_RETRY`]), and counts the retries;
+//!   ([`ENOBUFS_RETRY`]), and counts the retries;
 //! - reports the frames the kernel dropped because the socket's receive queue was full (its
 //!   `sk_drops`, read with `SO_MEMINFO`: [`drop_count`]).
 
