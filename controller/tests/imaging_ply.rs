@@ -227,6 +227,26 @@ fn a_vertex_count_beyond_the_data_is_an_error_not_an_allocation() {
     }
 }
 
+#[test]
+fn rows_of_no_property_are_refused_not_counted_through() {
+    // 4e10 rows that take no bytes once kept the reader busy for minutes (found by AFL++).
+    for format in ["ascii", "binary_little_endian"] {
+        let text = format!("ply\nformat {format} 1.0\nelement vertex 44444444444\nend_header\n");
+        let started = std::time::Instant::now();
+        match read_ply(text.as_bytes()).unwrap_err() {
+            PlyError::Data { reason, .. } => assert!(
+                reason.contains("element 'vertex' has 44444444444 rows but no property"),
+                "{format}: {reason}"
+            ),
+            other => panic!("{format}: expected a data error, got {other}"),
+        }
+        // As a point cloud it lacks its coordinates before any row is read.
+        assert!(read_point_cloud(text.as_bytes()).is_err());
+        // Not a timing test: a reader counting through would not return within the hour.
+        assert!(started.elapsed() < std::time::Duration::from_secs(60));
+    }
+}
+
 proptest! {
     #[test]
     fn the_reader_never_panics(bytes in proptest::collection::vec(any::<u8>(), 0..400)) {
