@@ -3,7 +3,18 @@
 //! prod_i(s^2 + 2 zbp_i wbp_i s + wbp_i^2)`. The right half plane zeros (waz2 < 0,
 //! zbz1 < 0) are kept as printed.
 
+use scanhil_protocol::validation::Allowed;
+
 use crate::continuous::{FactoredTf, Quadratic};
+
+/// The largest |frequency| of a factor, rad/s (16 MHz, far beyond any loop's Nyquist).
+pub const MAX_FREQ_RAD_S: f64 = 1e8;
+
+/// The largest |damping ratio| of a quadratic factor.
+pub const MAX_DAMPING: f64 = 1e3;
+
+/// The largest |k|.
+pub const MAX_GAIN: f64 = 1e12;
 
 /// Eq. 5's coefficients (Table I), and optionally the tone poles moved to exact frequencies.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -52,6 +63,32 @@ impl DualToneParams {
         }
         if self.zeta_bp.len() != self.wbp_rad_s.len() {
             return Err(("zeta_bp".into(), "needs one entry per wbp_rad_s".into()));
+        }
+        // Values a discretisation can take: a damping of 1e95 once overflowed the section's
+        // matrix to NaN, on which the matrix exponential never finished.
+        let frequency = Allowed::closed(-MAX_FREQ_RAD_S, MAX_FREQ_RAD_S, "rad/s");
+        let damping = Allowed::closed(-MAX_DAMPING, MAX_DAMPING, "");
+        for (field, allowed, values) in [
+            ("waz_rad_s", frequency, &self.waz_rad_s),
+            ("wap_rad_s", frequency, &self.wap_rad_s),
+            ("wbz_rad_s", frequency, &self.wbz_rad_s),
+            ("wbp_rad_s", frequency, &self.wbp_rad_s),
+            ("zeta_bz", damping, &self.zeta_bz),
+            ("zeta_bp", damping, &self.zeta_bp),
+        ] {
+            for (i, value) in values.iter().enumerate() {
+                allowed
+                    .check(field, *value)
+                    .map_err(|invalid| (format!("{field}[{i}]"), invalid.reason))?;
+            }
+        }
+        Allowed::closed(-MAX_GAIN, MAX_GAIN, "")
+            .check("k", self.k)
+            .map_err(|invalid| (invalid.field, invalid.reason))?;
+        for (i, f_hz) in self.tone_poles_at_hz.iter().flatten().enumerate() {
+            Allowed::above(0.0, MAX_FREQ_RAD_S / std::f64::consts::TAU, "Hz")
+                .check("tone_poles_at_hz", *f_hz)
+                .map_err(|invalid| (format!("tone_poles_at_hz[{i}]"), invalid.reason))?;
         }
         let tones = self.tone_poles_at_hz.as_ref().map_or(0, Vec::len);
         if tones > self.wbp_rad_s.len() {
@@ -111,5 +148,60 @@ impl DualToneParams {
             zeros,
             poles,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn values_no_discretisation_can_take_are_refused_naming_the_entry() {
+        // A damping of 1e95 once overflowed the section's matrix to NaN, and the zero-order
+        // hold's matrix exponential of it never finished (found by AFL++).
+        let field = |edit: fn(&mut DualToneParams)| {
+            let mut params = DualToneParams::paper();
+            edit(&mut params);
+            params.check().err().map(|(field, _)| field)
+        };
+        assert_eq!(field(|_| {}), None);
+        assert_eq!(
+            field(|p| p.zeta_bp[2] = 9.96e95).as_deref(),
+            Some("zeta_bp[2]")
+        );
+        assert_eq!(
+            field(|p| p.zeta_bz[0] = f64::NAN).as_deref(),
+            Some("zeta_bz[0]")
+        );
+        assert_eq!(
+            field(|p| p.wbp_rad_s[1] = 1e9).as_deref(),
+            Some("wbp_rad_s[1]")
+        );
+        assert_eq!(
+            field(|p| p.waz_rad_s[0] = -1e9).as_deref(),
+            Some("waz_rad_s[0]")
+        );
+        assert_eq!(
+            field(|p| p.wap_rad_s[0] = f64::INFINITY).as_deref(),
+            Some("wap_rad_s[0]")
+        );
+        assert_eq!(
+            field(|p| p.wbz_rad_s[0] = 2e8).as_deref(),
+            Some("wbz_rad_s[0]")
+        );
+        assert_eq!(field(|p| p.k = 1e13).as_deref(), Some("k"));
+        assert_eq!(
+            field(|p| p.tone_poles_at_hz = Some(vec![52.0, 0.0])).as_deref(),
+            Some("tone_poles_at_hz[1]")
+        );
+        // The limits themselves are taken.
+        assert_eq!(
+            field(|p| {
+                p.zeta_bp[0] = MAX_DAMPING;
+                p.wbp_rad_s[0] = -MAX_FREQ_RAD_S;
+                p.k = MAX_GAIN;
+            }),
+            None
+        );
     }
 }

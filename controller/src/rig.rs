@@ -357,13 +357,9 @@ impl Rig {
             field,
             reason,
         };
-        let rate = file.control_rate_hz;
-        if !(rate.is_finite() && rate > 0.0) {
-            return Err(invalid((
-                "control_rate_hz",
-                format!("{rate} Hz must be positive and finite"),
-            )));
-        }
+        scanhil_protocol::loop_limits::CONTROL_RATE_HZ
+            .check("control_rate_hz", file.control_rate_hz)
+            .map_err(|error| invalid(("control_rate_hz", error.reason)))?;
         file.scanner
             .setup
             .validate()
@@ -382,7 +378,7 @@ impl Rig {
             path: origin.to_owned(),
             name: file.name,
             description: file.description,
-            control_rate_hz: rate,
+            control_rate_hz: file.control_rate_hz,
             scanner: file.scanner,
             sensor: file.sensor,
             mirror: file.mirror,

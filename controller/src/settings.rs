@@ -126,7 +126,9 @@ impl ControllerSettings {
                 ))
             }
         };
-        positive("control_rate_hz", self.control_rate_hz)?;
+        scanhil_protocol::loop_limits::CONTROL_RATE_HZ
+            .check("control_rate_hz", self.control_rate_hz)
+            .map_err(|error| invalid("control_rate_hz", error.reason))?;
         positive("coil_current_limit_a", self.coil_current_limit_a)?;
         if let Some(l) = self.axis_command_limit_a {
             positive("axis_command_limit_a", l)?;

@@ -94,6 +94,9 @@ impl Default for PowerLimitConfig {
     }
 }
 
+/// The longest power-averaging window, s (the paper's bench averages over 1 s).
+pub const MAX_WINDOW_S: f64 = 10.0;
+
 impl PowerLimitConfig {
     /// Checks the parameters; on failure, the field name and why.
     pub fn validate(&self) -> Result<(), (String, String)> {
@@ -108,7 +111,10 @@ impl PowerLimitConfig {
             }
         };
         positive("limit_w", self.limit_w)?;
-        positive("window_s", self.window_s)?;
+        // The window is held a sample a period: ten seconds at the highest rate is 16 MB.
+        scanhil_protocol::validation::Allowed::above(0.0, MAX_WINDOW_S, "s")
+            .check("power_limit.window_s", self.window_s)
+            .map_err(|invalid| (invalid.field, invalid.reason))?;
         if let Some(r) = self.coil_resistance_ohm {
             positive("coil_resistance_ohm", r)?;
         }

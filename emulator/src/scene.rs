@@ -277,12 +277,9 @@ impl Scene {
 
     /// Checks values and part dependencies; on failure, the field and why.
     pub fn validate(&self) -> Result<(), (String, String)> {
-        if !(self.control_rate_hz.is_finite() && self.control_rate_hz > 0.0) {
-            return Err((
-                "control_rate_hz".into(),
-                format!("must be finite and > 0, got {}", self.control_rate_hz),
-            ));
-        }
+        scanhil_protocol::loop_limits::CONTROL_RATE_HZ
+            .check("control_rate_hz", self.control_rate_hz)
+            .map_err(|invalid| (invalid.field, invalid.reason))?;
         for (i, part) in self.parts.iter().enumerate() {
             if self.parts[..i].contains(part) {
                 return Err(("parts".into(), format!("part `{part}` is listed twice")));

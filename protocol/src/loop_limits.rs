@@ -13,6 +13,11 @@ pub const DURATION_S: Allowed = Allowed::above(0.0, 3600.0, "s");
 /// second; a minute per period is a hung peer, not a slow one.
 pub const ANSWER_ALLOWANCE_S: Allowed = Allowed::above(0.0, 60.0, "s");
 
+/// A loop's control rate, Hz: ten times the paper's 20 kHz. Beyond it the buffers sized in
+/// periods (a power limit's window, a delay line) grow past any memory (a scene at 2e25 Hz
+/// once asked for a 1.6e14-byte window).
+pub const CONTROL_RATE_HZ: Allowed = Allowed::above(0.0, 200_000.0, "Hz");
+
 /// The real-time wake-up probe before the loop, s (0: none).
 pub const PROBE_S: Allowed = Allowed::closed(0.0, 60.0, "s");
 

@@ -15,11 +15,9 @@ use scanhil_controller::run::interrupt::Interrupt;
 use scanhil_controller::run::scenario::{NodeLink, TimingConfig};
 use scanhil_controller::run::{LinkPlan, finish_emulator, open_links};
 use scanhil_protocol::loop_limits;
-use scanhil_protocol::validation::{Allowed, Invalid};
+use scanhil_protocol::validation::Invalid;
 
 /// Check a mirror node (and a sensor) against the loop protocol.
-/// The highest control rate conformance accepts, Hz (ten times the paper's 20 kHz).
-const MAX_RATE_HZ: f64 = 200_000.0;
 
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -34,7 +32,7 @@ pub struct Args {
     /// The scene an emulated node serves.
     #[arg(long)]
     scene: Option<PathBuf>,
-    /// The control rate the device runs at, in Hz (at most [`MAX_RATE_HZ`]).
+    /// The control rate the device runs at, in Hz (at most 200 kHz, the loop's limit).
     #[arg(long, default_value_t = 20_000.0, allow_negative_numbers = true)]
     rate_hz: f64,
     /// Missed answers before a link timeout (also what the device is expected to use).
@@ -69,7 +67,7 @@ pub struct Args {
 /// Values out of range or check names unknown (before any link opens); links that do not
 /// open; an emulated node without a scene; the JUnit file not writable.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
-    Allowed::above(0.0, MAX_RATE_HZ, "Hz")
+    loop_limits::CONTROL_RATE_HZ
         .check("rate_hz", args.rate_hz)
         .and_then(|()| {
             loop_limits::ANSWER_ALLOWANCE_S.check("answer_allowance_s", args.answer_allowance_s)
