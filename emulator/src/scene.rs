@@ -10,6 +10,7 @@
 use std::fmt;
 use std::path::{Path, PathBuf};
 
+use scanhil_protocol::validation::Allowed;
 use serde::{Deserialize, Serialize};
 
 use crate::amplifier::AmplifierConfig;
@@ -215,6 +216,13 @@ pub enum SceneError {
     },
 }
 
+/// The fastest a scene's plant may be stepped, Hz (ten megahertz: integrator studies step
+/// the plant at MHz; beyond it the buffers sized in periods outgrow any memory).
+pub const MAX_PLANT_RATE_HZ: f64 = 1e7;
+
+/// The most samples a power window may hold (16 MB of them).
+pub const MAX_POWER_WINDOW_SAMPLES: f64 = 2_097_152.0;
+
 impl Scene {
     /// Reads, parses and validates a scene file.
     ///
@@ -277,7 +285,8 @@ impl Scene {
 
     /// Checks values and part dependencies; on failure, the field and why.
     pub fn validate(&self) -> Result<(), (String, String)> {
-        scanhil_protocol::loop_limits::CONTROL_RATE_HZ
+        // A plant may be stepped far faster than any loop runs (integrator studies at MHz).
+        Allowed::above(0.0, MAX_PLANT_RATE_HZ, "Hz")
             .check("control_rate_hz", self.control_rate_hz)
             .map_err(|invalid| (invalid.field, invalid.reason))?;
         for (i, part) in self.parts.iter().enumerate() {
@@ -313,6 +322,19 @@ impl Scene {
             self.current_loop.validate()?;
         }
         self.power_limit.validate()?;
+        // The power window is held a sample a period (a scene at 2e25 Hz once asked for a
+        // 1.6e14-byte window).
+        let window_samples = self.power_limit.window_s * self.control_rate_hz;
+        if self.has(Part::PowerLimit) && window_samples > MAX_POWER_WINDOW_SAMPLES {
+            return Err((
+                "power_limit.window_s".into(),
+                format!(
+                    "{} s at {} Hz is {window_samples:.3e} samples, more than the {:e} a \
+                     window may hold",
+                    self.power_limit.window_s, self.control_rate_hz, MAX_POWER_WINDOW_SAMPLES
+                ),
+            ));
+        }
         if [
             Part::AngleSensorNoise,
             Part::AngleSensorBandwidth,

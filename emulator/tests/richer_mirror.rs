@@ -477,17 +477,21 @@ fn each_richer_value_is_refused_with_its_field_named() {
     // Buffers sized in periods: a rate of 2e25 Hz once asked for a 1.6e14-byte power window,
     // and so would a window of 1e9 s (found by AFL++).
     let rate = r#"{"name": "fast", "parts": ["axes"], "control_rate_hz": 2e25}"#;
+    // (The plant itself may be stepped at up to 10 MHz, for integrator studies.)
     match Scene::from_json_str(rate, Path::new("fast.json")) {
         Err(SceneError::Invalid { field, .. }) => assert_eq!(field, "control_rate_hz"),
         other => panic!("{other:?}"),
     }
-    assert_eq!(
-        refused(
-            r#""axes", "power_limit""#,
-            r#", "power_limit": {"limit_w": 30.0, "window_s": 1e9}"#
-        ),
-        "power_limit.window_s"
-    );
+    for window in [
+        r#", "power_limit": {"limit_w": 30.0, "window_s": 1e9}"#,
+        r#", "control_rate_hz": 1e7, "power_limit": {"limit_w": 30.0, "window_s": 1.0}"#,
+    ] {
+        assert_eq!(
+            refused(r#""axes", "power_limit""#, window),
+            "power_limit.window_s",
+            "{window}"
+        );
+    }
     // A pickup cannot be written non-finite in JSON; the check stands behind the library too.
     let nan = CrossTalkConfig {
         pickup_urad_per_a: Pickup {
