@@ -14,28 +14,19 @@ use anyhow::Context;
 use nix::fcntl::{Flock, FlockArg};
 
 use super::output::{FSM_LOG, REPORT, SENSOR_CAPTURE, TRACKING_SVG};
-use crate::imaging::pipeline::{
-    HEIGHT_MAP_CSV, HEIGHT_MAP_PNG, POINTS_PLY, PROFILES_CSV, PROFILES_SVG, PROGRESSIVE_SVG,
-    SNAPSHOTS_PNG,
-};
+use crate::imaging::pipeline::IMAGING_OUTPUTS;
 
 /// The lock file's name inside the folder.
 pub const LOCK_FILE: &str = ".scanhil.lock";
 
+/// The files a scan writes into its folder besides the imaging's
+/// ([`IMAGING_OUTPUTS`]).
+const RUN_FILES: [&str; 4] = [REPORT, FSM_LOG, SENSOR_CAPTURE, TRACKING_SVG];
+
 /// Every file a scan writes into its folder.
-pub const SCAN_FILES: [&str; 11] = [
-    REPORT,
-    FSM_LOG,
-    SENSOR_CAPTURE,
-    TRACKING_SVG,
-    POINTS_PLY,
-    HEIGHT_MAP_PNG,
-    HEIGHT_MAP_CSV,
-    PROGRESSIVE_SVG,
-    SNAPSHOTS_PNG,
-    PROFILES_SVG,
-    PROFILES_CSV,
-];
+fn scan_files() -> impl Iterator<Item = &'static str> {
+    RUN_FILES.into_iter().chain(IMAGING_OUTPUTS)
+}
 
 /// A claimed output folder; the claim ends when this is dropped.
 #[derive(Debug)]
@@ -75,7 +66,7 @@ impl OutputFolder {
             .and_then(|()| lock.rewind())
             .and_then(|_| write!(lock, "process {}", std::process::id()))
             .with_context(|| format!("writing {}", lock_path.display()))?;
-        for name in SCAN_FILES {
+        for name in scan_files() {
             // What a scan killed mid-write left under its temporary name.
             let partial = scanhil_protocol::whole_file::partial_path(&path.join(name));
             if partial.is_file() {
