@@ -30,7 +30,7 @@ pub fn eigenvalues(mut a: DMatrix<f64>) -> Vec<Complex<f64>> {
     a.complex_eigenvalues().iter().copied().collect()
 }
 
-/// Balances `a` in place by a diagonal similarity of powers of [`RADIX`]: afterwards no
+/// Balances `a` in place by a diagonal similarity of powers of two: afterwards no
 /// row's off-diagonal sum differs from its column's by much more than the radix, and the
 /// eigenvalues are those of the `a` given. Entries must be finite.
 pub fn balance(a: &mut DMatrix<f64>) {

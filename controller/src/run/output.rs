@@ -2,7 +2,7 @@
 //!
 //! | file | what |
 //! |------|------|
-//! | `report.json` | scenario, rig, outcome, periods, timing, tracking error, trajectory figures, sample pairing, `imaging` (the same [`ImagingReport`](crate::imaging::pipeline::ImagingReport) `scanhil reconstruct` writes: feature height, coverage, error against the truth over scan time), link counters, the emulator's summary |
+//! | `report.json` | scenario, rig, outcome, periods, timing, tracking error, trajectory figures, sample pairing, `imaging` (the same [`ImagingReport`] `scanhil reconstruct` writes: feature height, coverage, error against the truth over scan time), link counters, the emulator's summary |
 //! | `points.ply` | the reconstructed point cloud (binary little-endian PLY with t, angles, z_meas) |
 //! | `height_map.png`, `height_map.csv` | the gridded heights: a picture in mm with a colour bar (missing cells grey) / the cells (missing empty) |
 //! | `tracking.svg` | reference and measured angles, and the tracking error, over time |
