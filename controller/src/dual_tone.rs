@@ -194,6 +194,12 @@ mod tests {
             field(|p| p.tone_poles_at_hz = Some(vec![52.0, 0.0])).as_deref(),
             Some("tone_poles_at_hz[1]")
         );
+        // A tone's limit is the factors' 1e8 rad/s in Hz (15.9 MHz).
+        assert_eq!(
+            field(|p| p.tone_poles_at_hz = Some(vec![1.6e7])).as_deref(),
+            Some("tone_poles_at_hz[0]")
+        );
+        assert_eq!(field(|p| p.tone_poles_at_hz = Some(vec![1.59e7])), None);
         // The limits themselves are taken.
         assert_eq!(
             field(|p| {
