@@ -124,6 +124,24 @@ fn a_negative_number_is_a_value_for_every_numeric_flag() {
         assert_eq!(out.status.code(), Some(1), "{stderr}");
         assert!(stderr.contains(message), "{stderr}");
     }
+    // From a file, the file and the field are named.
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("t.json");
+    std::fs::write(
+        &file,
+        r#"{"kind": "lissajous", "alpha_hz": -52.0, "beta_hz": 27.0}"#,
+    )
+    .unwrap();
+    let file = file.to_str().unwrap();
+    let out = scanhil(&["trajectory", "--file", file]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains(&format!(
+            "{file}: field `trajectory.alpha_hz`: -52 Hz must be positive"
+        )),
+        "{stderr}"
+    );
     // An override that cannot run reaches the scenario's validation, which names the flag.
     let scenario =
         Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/scenarios/test-loop-small.json");
