@@ -67,9 +67,11 @@ fn the_emulator_passes_every_conformance_check() {
 }
 
 /// What `scanhil conformance` made of a deliberately non-conforming node.
-struct Verdict {
+pub struct Verdict {
     /// The rule the node broke.
     rule: String,
+    /// The mirror node's checks that ran, in order.
+    checks: &'static [&'static str],
     /// `scanhil conformance`'s exit code.
     code: Option<i32>,
     /// The pass/fail table it printed.
@@ -77,28 +79,28 @@ struct Verdict {
     /// The JUnit XML it wrote.
     xml: String,
     /// The emulator's exit code once conformance was done (`None`: still running).
-    emulator_code: Option<i32>,
+    pub emulator_code: Option<i32>,
 }
 
-/// A hand-started emulator's mirror node on an SLCAN pty, its watchdog the 50 periods of 10 ms
-/// conformance expects, `extra` added to its arguments.
-fn served_node(extra: &[&str]) -> ServedEmulator {
+/// A hand-started emulator's mirror node on an SLCAN pty, `extra` added to its arguments: the
+/// Duplo scene and the watchdog of 50 periods of 10 ms conformance expects, unless `extra`
+/// gives its own.
+pub fn served_node(extra: &[&str]) -> ServedEmulator {
     let scene = fixture("scenes/duplo-2x4-130mm.json");
-    let mut args = vec![
-        "--scene",
-        &scene,
-        "--fsm",
-        "slcan:pty",
-        "--watchdog-periods",
-        "50",
-    ];
+    let mut args = vec!["--fsm", "slcan:pty"];
+    if !extra.contains(&"--scene") {
+        args.extend(["--scene", &scene]);
+    }
+    if !extra.contains(&"--watchdog-periods") {
+        args.extend(["--watchdog-periods", "50"]);
+    }
     args.extend_from_slice(extra);
     ServedEmulator::start(&args)
 }
 
 /// Runs `scanhil conformance` on `emulator`'s mirror node (a real link to conformance: it did
 /// not start the node) with `extra` arguments; returns its output and JUnit XML.
-fn conformance_of(emulator: &ServedEmulator, extra: &[&str]) -> (std::process::Output, String) {
+pub fn conformance_of(emulator: &ServedEmulator, extra: &[&str]) -> (std::process::Output, String) {
     let out = tempfile::tempdir().expect("a temporary folder");
     let junit = out.path().join("conformance.xml");
     let fsm = format!("slcan:{}", emulator.path("fsm"));
@@ -106,11 +108,12 @@ fn conformance_of(emulator: &ServedEmulator, extra: &[&str]) -> (std::process::O
         "conformance",
         "--fsm",
         &fsm,
-        "--watchdog-periods",
-        "50",
         "--junit",
         junit.to_str().expect("UTF-8 path"),
     ];
+    if !extra.contains(&"--watchdog-periods") {
+        args.extend(["--watchdog-periods", "50"]);
+    }
     args.extend_from_slice(extra);
     let output = run_scanhil(&args);
     (output, std::fs::read_to_string(&junit).unwrap_or_default())
@@ -119,9 +122,25 @@ fn conformance_of(emulator: &ServedEmulator, extra: &[&str]) -> (std::process::O
 /// Runs `scanhil conformance --destructive` on the mirror node of a hand-started emulator
 /// served with `--misbehave rule`.
 fn conformance_against(rule: &str) -> Verdict {
-    let mut emulator = served_node(&["--misbehave", rule]);
+    misbehaving_node_verdict(rule, &FSM_CHECKS, &[], &[])
+}
+
+/// Runs `scanhil conformance --destructive` with `conformance_args` on the mirror node of a
+/// hand-started emulator served with `--misbehave rule` and `serve_args`; `checks` are the
+/// mirror node's checks that run.
+pub fn misbehaving_node_verdict(
+    rule: &str,
+    checks: &'static [&'static str],
+    serve_args: &[&str],
+    conformance_args: &[&str],
+) -> Verdict {
+    let mut serve = vec!["--misbehave", rule];
+    serve.extend_from_slice(serve_args);
+    let mut emulator = served_node(&serve);
     assert_eq!(emulator.ready["misbehave"], rule, "{}", emulator.ready);
-    let (output, xml) = conformance_of(&emulator, &["--destructive"]);
+    let mut args = vec!["--destructive"];
+    args.extend_from_slice(conformance_args);
+    let (output, xml) = conformance_of(&emulator, &args);
     let emulator_code = emulator
         .child
         .try_wait()
@@ -130,6 +149,7 @@ fn conformance_against(rule: &str) -> Verdict {
     drop(emulator);
     Verdict {
         rule: rule.to_owned(),
+        checks,
         code: output.status.code(),
         table: String::from_utf8_lossy(&output.stdout).into_owned(),
         xml,
@@ -141,12 +161,12 @@ impl Verdict {
     /// Asserts that exactly `failing` of the mirror node's checks failed (in the table, the
     /// JUnit XML and the exit code), every other one passed, and that each failure's JUnit
     /// message contains all of its `reasons`.
-    fn assert_fails_exactly(&self, failing: &[(&str, &[&str])]) {
+    pub fn assert_fails_exactly(&self, failing: &[(&str, &[&str])]) {
         let Verdict {
             rule, table, xml, ..
         } = self;
         assert_eq!(self.code, Some(1), "{rule}: conformance fails:\n{table}");
-        for check in FSM_CHECKS {
+        for &check in self.checks {
             let line = table
                 .lines()
                 .find(|line| line.starts_with("fsm ") && line.contains(check))
@@ -161,7 +181,11 @@ impl Verdict {
                 "{rule}: {check} should {expected}: {line}"
             );
         }
-        assert_eq!(xml.matches("<testcase ").count(), FSM_CHECKS.len(), "{xml}");
+        assert_eq!(
+            xml.matches("<testcase ").count(),
+            self.checks.len(),
+            "{xml}"
+        );
         assert!(
             xml.contains(&format!("failures=\"{}\"", failing.len())),
             "{rule}: {xml}"
@@ -303,17 +327,16 @@ fn a_node_dying_on_garbage_fails_the_garbage_check_and_leaves_no_watchdog() {
 }
 
 #[test]
-fn a_misbehaving_node_is_refused_in_real_time() {
+fn a_slow_clock_is_refused_in_lockstep() {
     let output = std::process::Command::new(crate::util::emulator())
         .args(["serve", "--scene", &fixture("scenes/duplo-2x4-130mm.json")])
-        .args(["--fsm", "slcan:pty", "--timing", "realtime"])
-        .args(["--misbehave", "late-answers"])
+        .args(["--fsm", "slcan:pty", "--misbehave", "slow-clock"])
         .output()
         .expect("running scanhil-emulator");
     assert!(!output.status.success(), "refused");
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(
-        stderr.contains("--misbehave: the non-conforming nodes run in lockstep only"),
+        stderr.contains("--misbehave: slow-clock needs --timing realtime"),
         "{stderr}"
     );
 }
@@ -329,14 +352,11 @@ fn amplifier_limit_a() -> f64 {
         .expect("an amplifier limit")
 }
 
-#[test]
-fn a_real_link_without_destructive_never_commands_beyond_the_amplifier_limit() {
-    // The node checks every command it received: the largest current any asked for, and the
-    // garbage SLCAN lines that reached it.
-    let emulator = served_node(&[]);
-    let (output, xml) = conformance_of(&emulator, &[]);
-    assert_success(&output, "scanhil conformance on a real link");
-    // The last check trips the node's watchdog on purpose: it ends there, coils at zero.
+/// After a conformance run without `--destructive` on `emulator`'s node: the last check
+/// tripped its watchdog on purpose (it ended there, coils at zero), the largest coil command
+/// it received was the drive's `drive_a` (nothing beyond the amplifier limit), and no garbage
+/// SLCAN line reached it.
+pub fn assert_only_the_drive_reached(emulator: ServedEmulator, drive_a: f64) {
     let (_, summary) = emulator.finish(Duration::from_secs(20));
     assert_eq!(summary["ended_by"], "watchdog", "{summary}");
     assert_eq!(
@@ -346,11 +366,21 @@ fn a_real_link_without_destructive_never_commands_beyond_the_amplifier_limit() {
     );
     let largest_a = summary["node"]["largest_command_a"].as_f64().unwrap();
     assert!(
-        largest_a <= amplifier_limit_a() && largest_a > 0.29,
-        "the drive reached the node, nothing beyond {} A: {largest_a} A",
+        largest_a <= amplifier_limit_a() && (largest_a - drive_a).abs() < 0.01 * drive_a,
+        "the {drive_a} A drive reached the node, nothing beyond {} A: {largest_a} A",
         amplifier_limit_a()
     );
     assert_eq!(summary["link"]["slcan_malformed_lines"], 0, "{summary}");
+}
+
+#[test]
+fn a_real_link_without_destructive_never_commands_beyond_the_amplifier_limit() {
+    // The node checks every command it received: the largest current any asked for, and the
+    // garbage SLCAN lines that reached it.
+    let emulator = served_node(&[]);
+    let (output, xml) = conformance_of(&emulator, &[]);
+    assert_success(&output, "scanhil conformance on a real link");
+    assert_only_the_drive_reached(emulator, 0.3);
     let table = String::from_utf8_lossy(&output.stdout);
     for check in ["over_current_fault", "survives_garbage_slcan_lines"] {
         let line = table.lines().find(|line| line.contains(check)).unwrap();

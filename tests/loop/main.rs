@@ -38,6 +38,8 @@ mod controller_watchdog;
 mod emulator_start;
 // Conformance checks against the emulator and deliberately non-conforming nodes, with JUnit XML.
 mod conformance;
+// Conformance in real time: a node on its own clock, its rate and readings' timing checked.
+mod conformance_realtime;
 // Real time: statistics present and sane; bus-load refusal before a run.
 mod timing;
 // The host alone: a rig and no scene for devices it did not start; scenes checked against rigs.

@@ -1,7 +1,8 @@
 //! `scanhil conformance --fsm LINK [--sensor LINK]`: checks a mirror node and a sensor, real
 //! or emulated, against the loop protocol; prints a pass/fail table (and for each failed check
 //! what to look at on the bench), optionally JUnit XML. `--check`/`--skip` select checks; on a
-//! real link the destructive ones run only with `--destructive`.
+//! real link the destructive ones run only with `--destructive`. `--timing realtime` checks a
+//! node that runs on its own clock (no Step frames).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -12,10 +13,16 @@ use scanhil_controller::run::conformance::{
     CheckResult, Outcome, ended_early, junit_xml, run_checks, table,
 };
 use scanhil_controller::run::interrupt::Interrupt;
-use scanhil_controller::run::scenario::{NodeLink, TimingConfig};
+use scanhil_controller::run::scenario::{NodeLink, TimingConfig, TimingMode};
 use scanhil_controller::run::{LinkPlan, finish_emulator, open_links};
 use scanhil_protocol::loop_limits;
 use scanhil_protocol::validation::Invalid;
+
+/// The lockstep answer allowance without `--answer-allowance-s`, s.
+const DEFAULT_ANSWER_ALLOWANCE_S: f64 = 0.01;
+/// How long a real-time emulated node started here may run, s: the checks take seconds and
+/// end its run (the zero command and the host's end, or its own watchdog).
+const EMULATED_NODE_MAX_S: f64 = 600.0;
 
 /// Check a mirror node (and a sensor) against the loop protocol.
 
@@ -35,12 +42,18 @@ pub struct Args {
     /// The control rate the device runs at, in Hz (at most 200 kHz, the loop's limit).
     #[arg(long, default_value_t = 20_000.0, allow_negative_numbers = true)]
     rate_hz: f64,
-    /// Missed answers before a link timeout (also what the device is expected to use).
+    /// How the node is clocked: `lockstep` (the host's Step frames advance it) or `realtime`
+    /// (it runs on its own clock at --rate-hz and sends a reading every period).
+    #[arg(long, value_enum, default_value_t = TimingMode::Lockstep)]
+    timing: TimingMode,
+    /// Missed answers before a link timeout (also what the device is expected to use). In
+    /// real time each is one period: the node's silence may last this many periods.
     #[arg(long, default_value_t = 50, allow_negative_numbers = true)]
     watchdog_periods: u32,
-    /// Wall-clock allowance per answer, in seconds.
-    #[arg(long, default_value_t = 0.01, allow_negative_numbers = true)]
-    answer_allowance_s: f64,
+    /// Lockstep: wall-clock allowance per answer, in seconds [default: 0.01]. In real time
+    /// the allowance is one period.
+    #[arg(long, allow_negative_numbers = true)]
+    answer_allowance_s: Option<f64>,
     /// Write the results as JUnit XML here.
     #[arg(long)]
     junit: Option<PathBuf>,
@@ -67,17 +80,27 @@ pub struct Args {
 /// Values out of range or check names unknown (before any link opens); links that do not
 /// open; an emulated node without a scene; the JUnit file not writable.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    let answer_allowance_s = args
+        .answer_allowance_s
+        .unwrap_or(DEFAULT_ANSWER_ALLOWANCE_S);
     loop_limits::CONTROL_RATE_HZ
         .check("rate_hz", args.rate_hz)
         .and_then(|()| {
-            loop_limits::ANSWER_ALLOWANCE_S.check("answer_allowance_s", args.answer_allowance_s)
+            loop_limits::ANSWER_ALLOWANCE_S.check("answer_allowance_s", answer_allowance_s)
+        })
+        .and_then(|()| match (args.timing, args.answer_allowance_s) {
+            (TimingMode::Realtime, Some(_)) => Err(Invalid::new(
+                "answer_allowance_s",
+                "applies to --timing lockstep only (in real time the allowance is one period)",
+            )),
+            _ => Ok(()),
         })
         .and_then(|()| {
-            loop_limits::check_watchdog(
-                "watchdog_periods",
-                args.watchdog_periods,
-                args.answer_allowance_s,
-            )
+            let allowance_s = match args.timing {
+                TimingMode::Lockstep => answer_allowance_s,
+                TimingMode::Realtime => 1.0 / args.rate_hz,
+            };
+            loop_limits::check_watchdog("watchdog_periods", args.watchdog_periods, allowance_s)
         })
         .map_err(Invalid::as_own_flag)?;
     let fsm = NodeLink::parse(&args.fsm);
@@ -86,6 +109,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         skip: args.skips,
         destructive: args.destructive,
         emulated: fsm == NodeLink::Pty,
+        timing: args.timing,
     };
     selection.check().map_err(Invalid::as_own_flag)?;
     let sensor = args.sensor.as_deref().map(NodeLink::parse);
@@ -104,12 +128,14 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         seed: 0,
         sensor_faults: Default::default(),
         timing: TimingConfig {
+            mode: args.timing,
             watchdog_periods: args.watchdog_periods,
-            lockstep_answer_allowance_s: args.answer_allowance_s,
+            lockstep_answer_allowance_s: answer_allowance_s,
             ..TimingConfig::default()
         },
         period_s: 1.0 / args.rate_hz,
-        duration_s: 0.0,
+        // A real-time node started here runs at most this long; the checks end it sooner.
+        duration_s: EMULATED_NODE_MAX_S,
         record_dir: None,
         recording: Default::default(),
         bus_bitrate: None,

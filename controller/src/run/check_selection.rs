@@ -8,8 +8,15 @@
 //! 4 A amplifier's limit, into the coils; `survives_garbage_slcan_lines` sends garbage lines
 //! that test the adapter's firmware as much as the node (an adapter without length checks puts
 //! a short garbage frame on the bus). Left out, they are listed as skipped with the reason.
+//!
+//! The timing checks depend on how the node is clocked (`--timing`): in lockstep
+//! `answers_in_time` (each Step answered within the allowance); in real time, where the node
+//! runs on its own clock, `readings_on_time` and `reading_rate`. The checks of the other
+//! timing are not listed.
 
 use scanhil_protocol::validation::Invalid;
+
+use super::scenario::TimingMode;
 
 /// One conformance check as the table knows it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -20,82 +27,110 @@ pub struct CheckSpec {
     pub node: &'static str,
     /// Whether it can harm a real bench (runs there only with `--destructive`).
     pub destructive: bool,
+    /// The timing it applies to (`None`: both).
+    pub timing: Option<TimingMode>,
     /// What to look at on the bench when it fails, one line.
     pub bench_hint: &'static str,
 }
 
 /// Every check, in the order conformance runs them.
-pub const CHECKS: [CheckSpec; 12] = [
+pub const CHECKS: [CheckSpec; 14] = [
     CheckSpec {
         name: "answers_in_time",
         node: "fsm",
         destructive: false,
+        timing: Some(TimingMode::Lockstep),
         bench_hint: "the node's receive-to-answer path: its loop time, the adapter's and USB's latency, and --answer-allowance-s against both",
+    },
+    CheckSpec {
+        name: "readings_on_time",
+        node: "fsm",
+        destructive: false,
+        timing: Some(TimingMode::Realtime),
+        bench_hint: "the node's loop timer and CAN transmit path (no silence as long as --watchdog-periods periods), the adapter's and USB's latency (the FTDI latency timer) and the bus load",
+    },
+    CheckSpec {
+        name: "reading_rate",
+        node: "fsm",
+        destructive: false,
+        timing: Some(TimingMode::Realtime),
+        bench_hint: "the node's configured control rate against --rate-hz, and its clock (timer prescaler, crystal)",
     },
     CheckSpec {
         name: "angle_sequence_gapless",
         node: "fsm",
         destructive: false,
+        timing: None,
         bench_hint: "the node's AngleReading counter (one per Step, following the Step counter) and frames lost on the bus (candump -e: error frames, adapter overruns, bus load)",
     },
     CheckSpec {
         name: "angles_in_range",
         node: "fsm",
         destructive: false,
+        timing: None,
         bench_hint: "the angle sensor's scaling (urad per count), axis order and sign, and that the amplifiers drive the coils (enable line, fuses, coil wiring)",
     },
     CheckSpec {
         name: "status_frames",
         node: "fsm",
         destructive: false,
+        timing: None,
         bench_hint: "the node's heartbeat (Status frames enabled, their rate) and the adapter's acceptance filter",
     },
     CheckSpec {
         name: "over_current_fault",
         node: "fsm",
         destructive: true,
+        timing: None,
         bench_hint: "the driver's current limit setting and its OverCurrent fault frame (a driver that clamps silently fails here)",
     },
     CheckSpec {
         name: "survives_malformed_frames",
         node: "fsm",
         destructive: false,
+        timing: None,
         bench_hint: "the node's length (DLC) checks: a loop frame with a short payload must be ignored, not acted on or fatal",
     },
     CheckSpec {
         name: "survives_garbage_slcan_lines",
         node: "fsm",
         destructive: true,
+        timing: None,
         bench_hint: "the SLCAN adapter's firmware (version, line parser): garbage lines must be refused with BEL, never reset it or reach the bus",
     },
     CheckSpec {
         name: "link_timeout_fault",
         node: "fsm",
         destructive: false,
+        timing: None,
         bench_hint: "the node's watchdog: armed, its periods against --watchdog-periods, and that it zeroes the coils and sends a LinkTimeout fault",
     },
     CheckSpec {
         name: "sensor_values_decode",
         node: "sensor",
         destructive: false,
+        timing: None,
         bench_hint: "the RS422 line: the baud on both ends (BAUDRATE), A/B wiring and termination, the USB adapter's latency timer",
     },
     CheckSpec {
         name: "sensor_counter_gapless",
         node: "sensor",
         destructive: false,
+        timing: None,
         bench_hint: "the sensor's output load against its baud (BR > 33 x MR x m / ODR) and the host reading the line in time",
     },
     CheckSpec {
         name: "sensor_values_in_range",
         node: "sensor",
         destructive: false,
+        timing: None,
         bench_hint: "the sensor's output settings (OUTDIST_RS422, OUTADD_RS422) against what GETOUTINFO_RS422 reports",
     },
     CheckSpec {
         name: "sensor_survives_bad_commands",
         node: "sensor",
         destructive: false,
+        timing: None,
         bench_hint: "the sensor's firmware and command line end (CR LF): bad commands must be refused with Exx and GETINFO still answered",
     },
 ];
@@ -134,6 +169,8 @@ pub struct Selection {
     pub destructive: bool,
     /// The mirror node is the emulator `conformance` started itself (no bench to harm).
     pub emulated: bool,
+    /// How the node is clocked: the timing checks differ.
+    pub timing: TimingMode,
 }
 
 impl Selection {
@@ -155,6 +192,16 @@ impl Selection {
                     ),
                 ));
             }
+        }
+        if let Some(other) = self.only.iter().find(|name| !self.applies(name)) {
+            return Err(Invalid::new(
+                "check",
+                format!(
+                    "`{other}` is a check of the other timing than --timing {} (its timing checks: {})",
+                    self.timing.name(),
+                    timing_checks(self.timing)
+                ),
+            ));
         }
         if let Some(harmful) = self
             .only
@@ -181,7 +228,7 @@ impl Selection {
     #[must_use]
     pub fn decide(&self, name: &str) -> Decision {
         let asked = self.only.is_empty() || self.only.iter().any(|only| only == name);
-        if !asked || self.skip.iter().any(|skip| skip == name) {
+        if !asked || self.skip.iter().any(|skip| skip == name) || !self.applies(name) {
             return Decision::Deselected;
         }
         match spec(name) {
@@ -195,11 +242,26 @@ impl Selection {
         }
     }
 
+    /// Whether check `name` applies to the node's timing.
+    fn applies(&self, name: &str) -> bool {
+        spec(name).is_none_or(|check| check.timing.is_none_or(|timing| timing == self.timing))
+    }
+
     /// Whether check `name` runs.
     #[must_use]
     pub fn runs(&self, name: &str) -> bool {
         self.decide(name) == Decision::Run
     }
+}
+
+/// The checks that apply to `timing` only, comma-separated.
+fn timing_checks(timing: TimingMode) -> String {
+    CHECKS
+        .iter()
+        .filter(|check| check.timing == Some(timing))
+        .map(|check| check.name)
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// What a destructive check would do to a real bench.
@@ -260,8 +322,45 @@ mod tests {
             ..Selection::default()
         };
         for selection in [told, emulated] {
-            assert!(CHECKS.iter().all(|check| selection.runs(check.name)));
+            assert!(CHECKS.iter().all(|check| {
+                selection.runs(check.name) == (check.timing != Some(TimingMode::Realtime))
+            }));
         }
+    }
+
+    #[test]
+    fn the_timing_checks_follow_the_nodes_timing() {
+        let realtime = Selection {
+            timing: TimingMode::Realtime,
+            emulated: true,
+            ..Selection::default()
+        };
+        let running: Vec<_> = CHECKS
+            .iter()
+            .filter(|c| realtime.runs(c.name))
+            .map(|c| c.name)
+            .collect();
+        assert_eq!(running.len(), 13);
+        assert!(!running.contains(&"answers_in_time"));
+        assert!(running.contains(&"readings_on_time") && running.contains(&"reading_rate"));
+        assert!(!Selection::default().runs("reading_rate"));
+        let asked = Selection {
+            only: names(&["answers_in_time"]),
+            ..realtime
+        };
+        let error = asked.check().unwrap_err();
+        assert_eq!(error.field, "check");
+        assert!(
+            error.reason.contains(
+                "other timing than --timing realtime (its timing checks: readings_on_time, reading_rate)"
+            ),
+            "{error}"
+        );
+        let skipped = Selection {
+            skip: names(&["answers_in_time"]),
+            ..Selection::default()
+        };
+        assert_eq!(skipped.check(), Ok(()));
     }
 
     #[test]

@@ -123,8 +123,21 @@ impl MirrorLink {
     /// # Errors
     /// [`LoopError`] as for [`Self::exchange_lockstep`].
     pub async fn next_reading(&mut self, expected: u64) -> Result<(u64, SensingPair), LoopError> {
+        self.next_reading_within(expected, self.total_allowance())
+            .await
+    }
+
+    /// [`Self::next_reading`], waiting at most `allowance` (conformance waits past the
+    /// watchdog's allowance to tell a late reading from a lost one).
+    ///
+    /// # Errors
+    /// As [`Self::next_reading`]; the timeout after `allowance`.
+    pub async fn next_reading_within(
+        &mut self,
+        expected: u64,
+        allowance: Duration,
+    ) -> Result<(u64, SensingPair), LoopError> {
         let t_s = (expected + 1) as f64 * self.period_s;
-        let allowance = self.total_allowance();
         let deadline = tokio::time::Instant::now() + allowance;
         loop {
             let frame = tokio::time::timeout_at(deadline, self.recv_at(t_s))

@@ -626,10 +626,7 @@ pub async fn open_links(plan: &LinkPlan) -> anyhow::Result<OpenLinks> {
         "--lockstep-answer-allowance-s".into(),
         timing.lockstep_answer_allowance_s.to_string(),
         "--timing".into(),
-        match timing.mode {
-            TimingMode::Lockstep => "lockstep".into(),
-            TimingMode::Realtime => "realtime".into(),
-        },
+        timing.mode.name().into(),
         // Killed with this process whatever ends it (started from this thread, which lives
         // as long as the process: the kernel's signal follows the thread that forked).
         "--exit-with-parent".into(),

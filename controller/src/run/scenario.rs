@@ -70,7 +70,9 @@ pub struct Scenario {
 }
 
 /// How the loop is clocked.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize, Default)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize, Default, clap::ValueEnum,
+)]
 #[serde(rename_all = "snake_case")]
 pub enum TimingMode {
     /// The controller's Step frame advances the emulator by exactly one period (virtual time).
@@ -78,6 +80,17 @@ pub enum TimingMode {
     Lockstep,
     /// The emulator is the clock master on the wall clock; the controller answers each period.
     Realtime,
+}
+
+impl TimingMode {
+    /// The mode as scenarios and command lines spell it.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            TimingMode::Lockstep => "lockstep",
+            TimingMode::Realtime => "realtime",
+        }
+    }
 }
 
 /// The `timing` section.

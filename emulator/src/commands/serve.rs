@@ -57,7 +57,7 @@ pub struct Args {
     /// Status/heartbeat frames per second (of loop time).
     #[arg(long, default_value_t = DEFAULT_HEARTBEAT_HZ, allow_negative_numbers = true)]
     heartbeat_hz: f64,
-    /// A conformance test aid: break this protocol rule on purpose (lockstep only; see
+    /// A conformance test aid: break this protocol rule on purpose (`slow-clock` in real time only; see
     /// docs/loop.md). Hidden from --help: no real use wants a broken node.
     #[arg(long, value_enum, hide = true)]
     misbehave: Option<Misbehaviour>,

@@ -1,10 +1,14 @@
 //! Deliberately non-conforming mirror nodes, a conformance test aid: `scanhil-emulator serve
 //! --misbehave RULE` breaks one rule of the loop protocol, so `scanhil conformance` can be
-//! shown to fail the check for that rule (`tests/loop/conformance.rs`). Lockstep only.
+//! shown to fail the check for that rule (`tests/loop/conformance.rs`), in lockstep and in
+//! real time.
 //!
-//! [`Misbehaving`] is a pure wrapper around the lockstep node's answers: it rewrites or drops
-//! frames of each answer, and tells the serve loop ([`super::lockstep`]) when to answer late,
-//! whether to arm its watchdog and when to die. Everything else the node does is unchanged.
+//! [`Misbehaving`] is a pure wrapper around the node's answers: it rewrites or drops frames of
+//! each answer (a lockstep answer, or a real-time period's frames), and tells the serve loop
+//! ([`super::lockstep`], [`super::realtime`]) when to answer late, whether to arm its
+//! watchdog, when to die and how fast its clock runs. Everything else the node does is
+//! unchanged. In real time a late answer is a stall of the node's clock: the period's frames go
+//! out late and the periods after it keep the delay (no catch-up burst).
 
 use scanhil_protocol::message::{AngleReading, Message, MessageError};
 
@@ -18,6 +22,9 @@ pub const OUT_OF_RANGE_FACTOR: f64 = 10.0;
 /// How late the `late-answers` node answers, as a multiple of its watchdog's whole allowance
 /// (the answer deadline the host is expected to use).
 pub const LATE_ANSWER_ALLOWANCES: f64 = 1.5;
+/// The length of the `slow-clock` node's periods, as a multiple of the declared period: its
+/// clock runs 5 % slow (a real node's crystal is off by parts per million).
+pub const SLOW_CLOCK_FACTOR: f64 = 1.05;
 
 /// The rule a deliberately non-conforming node breaks.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum, serde::Serialize)]
@@ -43,6 +50,18 @@ pub enum Misbehaviour {
     NoWatchdog,
     /// Exits at the first frame after a garbage SLCAN line.
     DiesOnGarbage,
+    /// Real time only: its periods are [`SLOW_CLOCK_FACTOR`] times the declared one (a node
+    /// configured for another rate, or a clock off by far more than any crystal).
+    SlowClock,
+}
+
+impl Misbehaviour {
+    /// Whether the rule can be broken in lockstep: a lockstep node has no clock of its own to
+    /// run slow.
+    #[must_use]
+    pub fn in_lockstep(self) -> bool {
+        self != Misbehaviour::SlowClock
+    }
 }
 
 /// One answer after the misbehaviour: what to send, and whether to send it late.
@@ -77,6 +96,16 @@ impl Misbehaving {
     #[must_use]
     pub fn arms_watchdog(&self) -> bool {
         self.rule != Misbehaviour::NoWatchdog
+    }
+
+    /// The length of the node's real-time periods, as a multiple of the declared one.
+    #[must_use]
+    pub fn clock_factor(&self) -> f64 {
+        if self.rule == Misbehaviour::SlowClock {
+            SLOW_CLOCK_FACTOR
+        } else {
+            1.0
+        }
     }
 
     /// Whether the node dies now, having counted `malformed_lines` garbage SLCAN lines.
@@ -244,10 +273,15 @@ mod tests {
     }
 
     #[test]
-    fn only_their_rules_disarm_the_watchdog_or_die() {
+    fn only_their_rules_disarm_the_watchdog_die_or_run_slow() {
         let silent = Misbehaving::new(Misbehaviour::NoWatchdog);
         assert!(!silent.arms_watchdog() && !silent.dies(5));
+        assert_eq!(silent.clock_factor(), 1.0);
         let fragile = Misbehaving::new(Misbehaviour::DiesOnGarbage);
         assert!(fragile.arms_watchdog() && !fragile.dies(0) && fragile.dies(1));
+        let slow = Misbehaving::new(Misbehaviour::SlowClock);
+        assert!(slow.arms_watchdog() && !slow.dies(1));
+        assert_eq!(slow.clock_factor(), SLOW_CLOCK_FACTOR);
+        assert!(!Misbehaviour::SlowClock.in_lockstep() && Misbehaviour::LateAnswers.in_lockstep());
     }
 }

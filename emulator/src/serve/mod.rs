@@ -12,7 +12,7 @@
 //! - [`realtime`]: this emulator is the clock master on the wall clock.
 //! - [`wind_down`]: how either loop ends: the node's last frames, the linger, and the end on
 //!   a link error (coils zeroed, last frames, reason).
-//! - [`misbehaviour`]: deliberately non-conforming nodes for conformance tests (lockstep).
+//! - [`misbehaviour`]: deliberately non-conforming nodes for conformance tests.
 //! - [`recording`]: a recorded session (`fsm.log`, `sensor.ild`) read into periods (no I/O
 //!   but reading the folder).
 //! - [`replay_node`]: the recorded session answering the controller in lockstep, its commands
@@ -97,7 +97,7 @@ pub struct ServeConfig {
     pub duration_s: Option<f64>,
     /// Status frames per second of loop time.
     pub heartbeat_hz: f64,
-    /// A protocol rule to break on purpose (a conformance test aid; lockstep only).
+    /// A protocol rule to break on purpose (a conformance test aid).
     pub misbehave: Option<misbehaviour::Misbehaviour>,
     /// The sensor losing its peak (`None`: never).
     pub sensor_faults: Option<SensorFaults>,
@@ -139,10 +139,13 @@ impl ServeConfig {
                 "--busy-poll, --cpu and --sched-fifo-priority apply to --timing realtime only",
             ));
         }
-        if self.misbehave.is_some() && self.timing == TimingMode::Realtime {
+        if let Some(rule) = self.misbehave
+            && self.timing == TimingMode::Lockstep
+            && !rule.in_lockstep()
+        {
             return Err(Invalid::new(
                 "misbehave",
-                "the non-conforming nodes run in lockstep only, not with --timing realtime",
+                "slow-clock needs --timing realtime (a lockstep node has no clock of its own)",
             ));
         }
         if self.replay.is_some() {

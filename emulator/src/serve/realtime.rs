@@ -8,6 +8,11 @@
 //! Status(ready) as its last frame, holding the zero. Timer resolution in an OS is coarse, so the loop waits for each period start by
 //! yielding to the I/O driver and re-reading the clock (received frames are handled meanwhile).
 //!
+//! With `--misbehave` the period's frames go through [`Misbehaving`] (a deliberately
+//! non-conforming node): a late answer stalls the node's clock ([`LATE_ANSWER_ALLOWANCES`] of
+//! its watchdog's allowance, the periods after it keeping the delay), a slow clock stretches
+//! every period, and the watchdog or the node itself may be disarmed or die.
+//!
 //! With busy-polling ([`ServeConfig::realtime`]) the wait spins on non-blocking reads of the
 //! link instead (no readiness, no yielding), for the shortest wake-up at each period start.
 //!
@@ -33,9 +38,10 @@ use scanhil_protocol::message::{Message, MessageError, NodeId, NodeState};
 
 use super::lockstep::{end_of_run, host_stopped_reading};
 use super::lockstep_node::{
-    angle_frame, fault_frame, last_frames, periods_per_heartbeat, status_frame,
+    NodeSend, angle_frame, fault_frame, last_frames, periods_per_heartbeat, status_frame,
 };
 use super::mirror_node::{MirrorNode, NodeOutput};
+use super::misbehaviour::{LATE_ANSWER_ALLOWANCES, Misbehaving};
 use super::wind_down::{end_on_link_error, wind_down, with_wind_down};
 use super::{LoopReport, RunEnd, ServeConfig, ServeLinks, ServeOutcome};
 
@@ -63,6 +69,10 @@ pub async fn run(
     config: &ServeConfig,
 ) -> anyhow::Result<LoopReport> {
     let period = Duration::from_secs_f64(node.plant().period_s());
+    let mut misbehaving = config.misbehave.map(Misbehaving::new);
+    // The node's own period: the declared one, unless its clock is made to run slow.
+    let tick = period.mul_f64(misbehaving.as_ref().map_or(1.0, Misbehaving::clock_factor));
+    let arms_watchdog = misbehaving.as_ref().is_none_or(Misbehaving::arms_watchdog);
     let heartbeat_every = periods_per_heartbeat(node.plant().period_s(), config.heartbeat_hz);
     let total_periods = config
         .duration_s
@@ -76,6 +86,7 @@ pub async fn run(
     let busy_poll = config.realtime.busy_poll;
     let mut host = HostHeard::default();
     let silence_allowance = period.saturating_mul(config.watchdog_periods);
+    let late_pause = silence_allowance.mul_f64(LATE_ANSWER_ALLOWANCES);
     let mut dropped_periods = 0u64;
     // Since when the line has taken no byte while frames waited (the host is not reading).
     let mut unsent_since: Option<Instant> = None;
@@ -86,7 +97,8 @@ pub async fn run(
             error = links.sensor.answer_commands() => return Err(error),
         };
     }
-    let start = Instant::now();
+    // Moved on by a misbehaving node's stall, so the periods after it keep the delay.
+    let mut start = Instant::now();
     let mut last_tick: Option<Instant> = None;
     let mut outcome = ServeOutcome::Finished;
     let mut ended_by = RunEnd::Duration;
@@ -129,7 +141,7 @@ pub async fn run(
         if link_error.is_some() || total_periods.is_some_and(|n| k >= n) {
             break;
         }
-        let deadline = start + period.saturating_mul(k as u32);
+        let deadline = start + tick.saturating_mul(k as u32);
         let served = serve_until(links, node, k, deadline, busy_poll, &mut host).await;
         if let Err(err) = served {
             link_error = Some(err.into());
@@ -138,6 +150,13 @@ pub async fn run(
         if host.ended {
             // The end came before the duration ran out: answered at the next tick's start.
             continue;
+        }
+        if let Some(misbehaving) = &misbehaving
+            && misbehaving.dies(links.fsm.stats().slcan.malformed_lines)
+        {
+            anyhow::bail!(
+                "--misbehave dies-on-garbage: dying on purpose at the first period after a garbage SLCAN line"
+            );
         }
         let now = Instant::now();
         if let Some(previous) = last_tick {
@@ -152,10 +171,12 @@ pub async fn run(
         // The watchdog: armed by the first command; fires after `watchdog_periods` ticks
         // without one, or when a reading has waited that many periods of wall time for its
         // answer.
-        let silent_ticks = host
-            .last_command_period
-            .is_some_and(|last| k - last > u64::from(config.watchdog_periods));
-        let silent_wall = host.last_command_period.is_some()
+        let silent_ticks = arms_watchdog
+            && host
+                .last_command_period
+                .is_some_and(|last| k - last > u64::from(config.watchdog_periods));
+        let silent_wall = arms_watchdog
+            && host.last_command_period.is_some()
             && host
                 .unanswered_since
                 .is_some_and(|since| now.duration_since(since) > silence_allowance);
@@ -212,6 +233,25 @@ pub async fn run(
         }
         if k.is_multiple_of(heartbeat_every) {
             frames.push(status_frame(node.state(), k, node.plant().period_s())?);
+        }
+        if let Some(misbehaving) = &mut misbehaving {
+            let answer = misbehaving.answer(frames.into_iter().map(NodeSend::Frame).collect())?;
+            frames = answer
+                .sends
+                .into_iter()
+                .filter_map(|send| match send {
+                    NodeSend::Frame(frame) => Some(frame),
+                    NodeSend::Samples(_) | NodeSend::Cycles(_) => None,
+                })
+                .collect();
+            if answer.late {
+                // The node's clock stalls; its own stall is not the host's silence.
+                tokio::time::sleep(late_pause).await;
+                start += late_pause;
+                if host.unanswered_since.is_some() {
+                    host.unanswered_since = Some(Instant::now());
+                }
+            }
         }
         // The clock master never waits for a slow host: what cannot go out within the send
         // allowance is dropped (and counted), as frames on a bus nobody reads are lost; an
