@@ -1,7 +1,8 @@
 //! A recorded session served as the devices (`scanhil scan --replay`, `scanhil-emulator
 //! replay`): the recording's own controller reproduces its outputs bit for bit, a changed one
-//! is reported from its first diverging period, a bench-style capture replays the same, and a
-//! recording with a line missing is refused naming the line.
+//! is reported from its first diverging period, a bench-style capture replays the same, a
+//! recording with a line missing is refused naming the line, and in real time the session is
+//! served at its recorded times (a stall in the recording is a stall of the replay).
 //!
 //! The recording is `fixtures/recordings/replay-small/`: `fsm.log`, `sensor.ild`,
 //! `report.json` and `points.ply` as `scanhil scan fixtures/scenarios/test-replay-small.json`
@@ -305,15 +306,13 @@ fn a_recording_with_a_line_removed_is_refused_naming_the_line() {
 fn replay_flags_that_cannot_apply_are_refused_before_any_link_opens() {
     let out = tempfile::tempdir().expect("a temporary folder");
     let dir = recording();
-    for (extra, flag, why) in [
-        (vec!["--timing", "realtime"], "--replay", "lockstep only"),
-        (vec!["--no-emulator"], "--replay", "not with --no-emulator"),
-    ] {
-        let output = replay_scan(&fixture(SCENARIO), &dir, out.path(), &extra);
-        let stderr = String::from_utf8_lossy(&output.stderr);
-        assert_eq!(output.status.code(), Some(1), "{stderr}");
-        assert!(stderr.contains(flag) && stderr.contains(why), "{stderr}");
-    }
+    let output = replay_scan(&fixture(SCENARIO), &dir, out.path(), &["--no-emulator"]);
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("--replay") && stderr.contains("not with --no-emulator"),
+        "{stderr}"
+    );
     let output = run_scanhil(&[
         "scan",
         &fixture(SCENARIO),
@@ -328,4 +327,95 @@ fn replay_flags_that_cannot_apply_are_refused_before_any_link_opens() {
         "{stderr}"
     );
     assert!(!out.path().join("fsm.log").exists(), "no link opened");
+}
+
+/// The watchdog of the real-time replays, periods: 1 s at 20 kHz, so a loaded machine's stalls
+/// (and the 0.2 s stall recorded below) are no silence.
+const REALTIME_WATCHDOG_PERIODS: &str = "20000";
+
+/// The recording's folder copied to `dir` with every stamp from `from_s` on moved `by_s` later.
+fn recording_with_a_stall(dir: &Path, from_s: f64, by_s: f64) {
+    for file in ["sensor.ild", "report.json"] {
+        std::fs::copy(recording().join(file), dir.join(file)).expect("copying the recording");
+    }
+    let log = std::fs::read_to_string(recording().join("fsm.log")).expect("the recording");
+    let stalled: String = log
+        .lines()
+        .map(|line| {
+            let (stamp, rest) = line
+                .strip_prefix('(')
+                .and_then(|line| line.split_once(')'))
+                .expect("a candump -L line");
+            let t_s: f64 = stamp.parse().expect("a stamp");
+            let t_s = if t_s >= from_s { t_s + by_s } else { t_s };
+            format!("({t_s:.6}){rest}\n")
+        })
+        .collect();
+    std::fs::write(dir.join("fsm.log"), stalled).expect("writing the stalled recording");
+}
+
+#[test]
+fn a_real_time_replay_answers_every_command_of_the_recordings_controller() {
+    let out = tempfile::tempdir().expect("a temporary folder");
+    let output = replay_scan(
+        &fixture(SCENARIO),
+        &recording(),
+        out.path(),
+        &[
+            "--timing",
+            "realtime",
+            "--watchdog-periods",
+            REALTIME_WATCHDOG_PERIODS,
+        ],
+    );
+    assert_success(&output, "scanhil scan --replay --timing realtime");
+    let report = report(out.path());
+    let replay = &report["replay"];
+    // Real time has no CoilCommand(0): the host answers reading k with the command of k + 1,
+    // each compared with the recorded one of its period, the end's zero command included.
+    assert_eq!(replay["compared"], 300, "{replay}");
+    assert_eq!(replay["not_recorded"], 0, "{replay}");
+    let node = &report["emulator"]["summary"]["node"];
+    assert_eq!(node["periods"], 300, "{node}");
+    assert_eq!(node["sensor_cycles"], 300, "{node}");
+    assert_eq!(
+        report["outcome"]["verdict"], "complete",
+        "{}",
+        report["outcome"]
+    );
+    assert_coils_at_zero(&report);
+    // The readings reached the host as recorded: the same angles, so with none missed the
+    // recording's controller commands what it commanded then.
+    if report["timing"]["controller"]["missed_readings"] == 0 {
+        assert_eq!(replay["differing"], 0, "{replay}");
+    }
+}
+
+#[test]
+fn a_real_time_replay_keeps_the_recorded_timing() {
+    // The recording's stamps from period 150 on (7.5 ms) are moved 0.2 s later: the replay
+    // holds its readings back that long, as a session that stalled there would have.
+    let dir = tempfile::tempdir().expect("a temporary folder");
+    recording_with_a_stall(dir.path(), 0.0075, 0.2);
+    let out = tempfile::tempdir().expect("a temporary folder");
+    let output = replay_scan(
+        &fixture(SCENARIO),
+        dir.path(),
+        out.path(),
+        &[
+            "--timing",
+            "realtime",
+            "--watchdog-periods",
+            REALTIME_WATCHDOG_PERIODS,
+        ],
+    );
+    assert_success(&output, "scanhil scan --replay DIR --timing realtime");
+    let report = report(out.path());
+    let interval = &report["timing"]["controller"]["reading_interval"];
+    let longest_s = interval["max_s"].as_f64().expect("the longest interval");
+    assert!(
+        (0.19..1.0).contains(&longest_s),
+        "the recorded 0.2 s stall between two readings: {interval}"
+    );
+    assert_eq!(report["emulator"]["summary"]["node"]["periods"], 300);
 }

@@ -181,7 +181,7 @@ impl ScanOptions {
         if self.no_emulator {
             scenario.links.spawn_emulator = false;
         }
-        self.check_replay(&scenario)?;
+        self.check_replay()?;
         for assignment in &self.faults {
             scenario.faults = scenario.faults.with_override(assignment).map_err(|error| {
                 Invalid::new("fault", Invalid::new(error.field, error.reason).to_string())
@@ -208,19 +208,15 @@ impl ScanOptions {
         Ok(scenario)
     }
 
-    /// `--replay` needs an emulator started here to serve the recording, in lockstep;
+    /// `--replay` needs an emulator started here to serve the recording;
     /// `--replay-must-match` needs `--replay`.
-    fn check_replay(&self, scenario: &Scenario) -> Result<(), InvalidValue> {
+    fn check_replay(&self) -> Result<(), InvalidValue> {
         let refused = match &self.replay {
             None if self.replay_must_match => Some(("--replay-must-match", "needs --replay DIR")),
             None => None,
             Some(_) if self.no_emulator => Some((
                 "--replay",
                 "serves the recording from an emulator this scan starts: not with --no-emulator",
-            )),
-            Some(_) if scenario.timing.mode == TimingMode::Realtime => Some((
-                "--replay",
-                "replays in lockstep only, not with realtime timing",
             )),
             Some(_) => None,
         };

@@ -20,7 +20,8 @@ pub struct Args {
     serve: super::serve::Args,
 }
 
-/// Serves the session in lockstep until the controller ends the run; prints the `ready` and
+/// Serves the session (in lockstep, or in real time at its recorded times) until the
+/// controller ends the run; prints the `ready` and
 /// `summary` lines as `serve` does, the summary's `replay` comparing the controller's coil
 /// commands with the recorded ones. Exit status as `serve`'s.
 ///

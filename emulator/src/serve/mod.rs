@@ -15,8 +15,8 @@
 //! - [`misbehaviour`]: deliberately non-conforming nodes for conformance tests.
 //! - [`recording`]: a recorded session (`fsm.log`, `sensor.ild`) read into periods (no I/O
 //!   but reading the folder).
-//! - [`replay_node`]: the recorded session answering the controller in lockstep, its commands
-//!   compared with the recorded ones (no I/O).
+//! - [`replay_node`]: the recorded session answering the controller in lockstep or clocked in
+//!   real time at its recorded times, its commands compared with the recorded ones (no I/O).
 //!
 //! The process speaks on stdout in JSON lines: `{"event":"ready",...}` once the links are
 //! open (with the paths of any pty it created), and `{"event":"summary",...}` at the end.
@@ -149,10 +149,9 @@ impl ServeConfig {
             ));
         }
         if self.replay.is_some() {
-            let refused = match (self.timing, &self.misbehave, &self.sensor_faults) {
-                (TimingMode::Realtime, ..) => Some(("timing", "lockstep only, not realtime")),
-                (_, Some(_), _) => Some(("misbehave", "no non-conforming node")),
-                (_, _, Some(_)) => Some((
+            let refused = match (&self.misbehave, &self.sensor_faults) {
+                (Some(_), _) => Some(("misbehave", "no non-conforming node")),
+                (_, Some(_)) => Some((
                     "sensor_faults",
                     "no sensor faults (it serves what was recorded)",
                 )),
@@ -415,7 +414,7 @@ async fn emulate(
     Ok((report, summary))
 }
 
-/// Serves a recorded session in lockstep ([`ReplayNode`]); its summary holds the comparison
+/// Serves a recorded session ([`ReplayNode`]) in the timing mode asked; its summary holds the comparison
 /// of the controller's commands with the recorded ones (`replay`). Returns the sensor clock to
 /// declare too: the recording host's, when its report gave it.
 async fn replay(
@@ -427,7 +426,11 @@ async fn replay(
 ) -> anyhow::Result<(LoopReport, NodeSummary, Option<RecordedClock>)> {
     let clock = recording.clock;
     let mut node = ReplayNode::new(recording, period_s, measuring_rate_hz);
-    let report = match lockstep::run_answers(&mut node, links, config).await {
+    let served = match config.timing {
+        TimingMode::Lockstep => lockstep::run_answers(&mut node, links, config).await,
+        TimingMode::Realtime => realtime::run(&mut node, links, config).await,
+    };
+    let report = match served {
         Ok(report) => report,
         Err(error) => {
             wind_down::end_on_link_error_with(links, error, || node.on_link_failure()).await?

@@ -1,4 +1,7 @@
 //! Real time: the emulator is the clock master, from the moment the host opens the channel.
+//! The loop keeps time for a [`ClockedNode`]: the emulated mirror ([`MirrorNode`]), or a
+//! recorded session ([`super::replay_node::ReplayNode`]) whose periods go out at their recorded
+//! times.
 //! Every period it steps the plant with the
 //! newest coil command it has (a command that arrived late still counts for the next period),
 //! sends Sync(k) and AngleReading(k), then the sensor's samples and, at the heartbeat rate, a
@@ -34,7 +37,7 @@ use std::time::{Duration, Instant};
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::link::LinkError;
 use scanhil_protocol::loop_timing::{MissedDeadline, PeriodRecorder};
-use scanhil_protocol::message::{Message, MessageError, NodeId, NodeState};
+use scanhil_protocol::message::{CoilCommand, Message, MessageError, NodeId, NodeState};
 
 use super::lockstep::{end_of_run, host_stopped_reading};
 use super::lockstep_node::{
@@ -42,7 +45,7 @@ use super::lockstep_node::{
 };
 use super::mirror_node::{MirrorNode, NodeOutput};
 use super::misbehaviour::{LATE_ANSWER_ALLOWANCES, Misbehaving};
-use super::wind_down::{end_on_link_error, wind_down, with_wind_down};
+use super::wind_down::{end_on_link_error_with, wind_down, with_wind_down};
 use super::{LoopReport, RunEnd, ServeConfig, ServeLinks, ServeOutcome};
 
 /// How long one period's frames may take to go out before they are dropped.
@@ -50,6 +53,113 @@ const SEND_ALLOWANCE: Duration = Duration::from_millis(2);
 
 /// The most missed deadlines listed one by one in the summary (the rest are only counted).
 const MAX_LISTED_MISSES: usize = 1 << 20;
+
+/// A node the real-time loop clocks: what it sends each period and what it makes of the host's
+/// frames. No I/O and no clock: the loop keeps time and does the sending.
+pub trait ClockedNode {
+    /// The control period, s.
+    fn period_s(&self) -> f64;
+    /// The period it steps next.
+    fn next_period(&self) -> u64;
+    /// When period `k` starts after the clock's start.
+    fn period_start(&self, k: u64) -> Duration;
+    /// Steps period [`Self::next_period`]: what it sends, in order (its AngleReading among the
+    /// frames), a heartbeat Status frame among them when `heartbeat` asks for one.
+    ///
+    /// # Errors
+    /// A plant error, a frame that cannot be encoded, a recording that has no such period.
+    fn tick(&mut self, heartbeat: bool) -> anyhow::Result<Vec<NodeSend>>;
+    /// Periods stepped so far without a fresh command since the one before.
+    fn stale_periods(&self) -> u64;
+    /// The host's coil command.
+    fn take_command(&mut self, command: &CoilCommand);
+    /// A loop frame with a malformed payload came.
+    fn malformed_frame(&mut self);
+    /// The watchdog fired after `missed_periods`: coils zeroed; its last frames.
+    ///
+    /// # Errors
+    /// A frame that cannot be encoded.
+    fn watchdog_fired(&mut self, missed_periods: u32) -> Result<[CanFrame; 2], MessageError>;
+    /// The link failed: coils zeroed; its last frames.
+    ///
+    /// # Errors
+    /// A frame that cannot be encoded.
+    fn link_failed(&mut self) -> Result<[CanFrame; 2], MessageError>;
+    /// The host ended the run (after its zero command): the node's answer, its last frame.
+    ///
+    /// # Errors
+    /// A frame that cannot be encoded.
+    fn run_ended(&mut self) -> Result<CanFrame, MessageError>;
+}
+
+impl ClockedNode for MirrorNode {
+    fn period_s(&self) -> f64 {
+        self.plant().period_s()
+    }
+
+    fn next_period(&self) -> u64 {
+        MirrorNode::next_period(self)
+    }
+
+    fn period_start(&self, k: u64) -> Duration {
+        Duration::from_secs_f64(self.plant().period_s()).saturating_mul(k as u32)
+    }
+
+    /// Sync(k), the AngleReading, fault frames, the heartbeat; the sensor's samples after them.
+    fn tick(&mut self, heartbeat: bool) -> anyhow::Result<Vec<NodeSend>> {
+        let k = MirrorNode::next_period(self);
+        let period_s = self.plant().period_s();
+        let mut sends = vec![NodeSend::Frame(Message::Sync { step: k as u32 }.encode()?)];
+        let mut samples = Vec::new();
+        for output in self.step()? {
+            match output {
+                NodeOutput::Angles(step) => {
+                    sends.push(NodeSend::Frame(angle_frame(&step)?));
+                    samples = step.sensor_samples;
+                }
+                NodeOutput::Fault(kind, detail) => {
+                    sends.push(NodeSend::Frame(fault_frame(kind, detail, k)?));
+                }
+            }
+        }
+        if heartbeat {
+            sends.push(NodeSend::Frame(status_frame(self.state(), k, period_s)?));
+        }
+        sends.push(NodeSend::Samples(samples));
+        Ok(sends)
+    }
+
+    fn stale_periods(&self) -> u64 {
+        self.counters().stale_periods
+    }
+
+    fn take_command(&mut self, command: &CoilCommand) {
+        self.on_command(command.seq, command.amps());
+    }
+
+    fn malformed_frame(&mut self) {
+        self.on_malformed_frame();
+    }
+
+    fn watchdog_fired(&mut self, missed_periods: u32) -> Result<[CanFrame; 2], MessageError> {
+        let fault = self.on_link_timeout(missed_periods);
+        last_frames(self, fault)
+    }
+
+    fn link_failed(&mut self) -> Result<[CanFrame; 2], MessageError> {
+        let fault = self.on_link_failure();
+        last_frames(self, fault)
+    }
+
+    fn run_ended(&mut self) -> Result<CanFrame, MessageError> {
+        self.on_end_of_run();
+        status_frame(
+            self.state(),
+            MirrorNode::next_period(self),
+            self.plant().period_s(),
+        )
+    }
+}
 
 /// Runs the real-time loop until the duration ends, the controller hangs up or closes the SLCAN
 /// channel, or the watchdog fires (no command for `watchdog_periods` periods once the first one
@@ -64,19 +174,19 @@ const MAX_LISTED_MISSES: usize = 1 << 20;
 /// A link error before the clock starts, the host's hang-up included (`serve` ends the run on
 /// it the same way), a plant error, or a frame that cannot be encoded.
 pub async fn run(
-    node: &mut MirrorNode,
+    node: &mut impl ClockedNode,
     links: &mut ServeLinks,
     config: &ServeConfig,
 ) -> anyhow::Result<LoopReport> {
-    let period = Duration::from_secs_f64(node.plant().period_s());
+    let period = Duration::from_secs_f64(node.period_s());
     let mut misbehaving = config.misbehave.map(Misbehaving::new);
-    // The node's own period: the declared one, unless its clock is made to run slow.
-    let tick = period.mul_f64(misbehaving.as_ref().map_or(1.0, Misbehaving::clock_factor));
+    // The node's clock: its own, unless it is made to run slow.
+    let clock_factor = misbehaving.as_ref().map_or(1.0, Misbehaving::clock_factor);
     let arms_watchdog = misbehaving.as_ref().is_none_or(Misbehaving::arms_watchdog);
-    let heartbeat_every = periods_per_heartbeat(node.plant().period_s(), config.heartbeat_hz);
+    let heartbeat_every = periods_per_heartbeat(node.period_s(), config.heartbeat_hz);
     let total_periods = config
         .duration_s
-        .map(|d| (d / node.plant().period_s()).round() as u64);
+        .map(|d| (d / node.period_s()).round() as u64);
     let mut recorder = PeriodRecorder::new(period.as_secs_f64());
     let mut lateness = PeriodRecorder::new(period.as_secs_f64());
     let mut misses: Vec<MissedDeadline> = Vec::new();
@@ -126,8 +236,7 @@ pub async fn run(
             // The controller ended the run (after its zero command, which the node took
             // first): the node answers Status(ready) as its last frame, after what the
             // sensor's line still carries.
-            node.on_end_of_run();
-            let ready = status_frame(node.state(), k, node.plant().period_s())?;
+            let ready = node.run_ended()?;
             let ended = async {
                 release_the_rest(links).await?;
                 end_of_run(&ready, links).await
@@ -141,7 +250,7 @@ pub async fn run(
         if link_error.is_some() || total_periods.is_some_and(|n| k >= n) {
             break;
         }
-        let deadline = start + tick.saturating_mul(k as u32);
+        let deadline = start + node.period_start(k).mul_f64(clock_factor);
         let served = serve_until(links, node, k, deadline, busy_poll, &mut host).await;
         if let Err(err) = served {
             link_error = Some(err.into());
@@ -183,10 +292,9 @@ pub async fn run(
         let not_reading =
             unsent_since.is_some_and(|since| now.duration_since(since) > silence_allowance);
         if silent_ticks || silent_wall || not_reading {
-            let fault = node.on_link_timeout(config.watchdog_periods);
             // A frozen host leaves the line full: the frames are queued (a send that times out
             // keeps what it has not written) and go out while `linger` drains the host.
-            let frames = last_frames(node, fault)?;
+            let frames = node.watchdog_fired(config.watchdog_periods)?;
             let (end, reason) = if not_reading {
                 (
                     RunEnd::HostStoppedReading,
@@ -208,11 +316,9 @@ pub async fn run(
             break;
         }
         host.unanswered_since.get_or_insert(now);
-        let mut frames = vec![Message::Sync { step: k as u32 }.encode()?];
-        let mut samples = Vec::new();
-        let stale_before = node.counters().stale_periods;
-        let outputs = node.step()?;
-        if node.counters().stale_periods > stale_before && k > 0 {
+        let stale_before = node.stale_periods();
+        let mut sends = node.tick(k.is_multiple_of(heartbeat_every))?;
+        if node.stale_periods() > stale_before && k > 0 {
             if misses.len() < MAX_LISTED_MISSES {
                 misses.push(MissedDeadline {
                     period: k,
@@ -222,28 +328,9 @@ pub async fn run(
                 misses_not_listed += 1;
             }
         }
-        for output in outputs {
-            match output {
-                NodeOutput::Angles(step) => {
-                    frames.push(angle_frame(&step)?);
-                    samples = step.sensor_samples;
-                }
-                NodeOutput::Fault(kind, detail) => frames.push(fault_frame(kind, detail, k)?),
-            }
-        }
-        if k.is_multiple_of(heartbeat_every) {
-            frames.push(status_frame(node.state(), k, node.plant().period_s())?);
-        }
         if let Some(misbehaving) = &mut misbehaving {
-            let answer = misbehaving.answer(frames.into_iter().map(NodeSend::Frame).collect())?;
-            frames = answer
-                .sends
-                .into_iter()
-                .filter_map(|send| match send {
-                    NodeSend::Frame(frame) => Some(frame),
-                    NodeSend::Samples(_) | NodeSend::Cycles(_) => None,
-                })
-                .collect();
+            let answer = misbehaving.answer(sends)?;
+            sends = answer.sends;
             if answer.late {
                 // The node's clock stalls; its own stall is not the host's silence.
                 tokio::time::sleep(late_pause).await;
@@ -261,8 +348,20 @@ pub async fn run(
         // each is counted once, sent or dropped, even when the allowance runs out before the
         // sensor's turn: they wait for the next tick); what has arrived by this tick goes out
         // with its frames.
-        links.sensor.offer(&samples);
-        let now_s = k as f64 * node.plant().period_s();
+        let mut frames = Vec::with_capacity(sends.len());
+        for send in sends {
+            match send {
+                NodeSend::Frame(frame) => frames.push(frame),
+                NodeSend::Samples(samples) => links.sensor.offer(&samples),
+                NodeSend::Cycles(cycles) => {
+                    if let Err(err) = links.sensor.write_cycles(&cycles) {
+                        link_error = Some(err.into());
+                        break 'ticks;
+                    }
+                }
+            }
+        }
+        let now_s = k as f64 * node.period_s();
         let send = async {
             links.fsm.flush().await?;
             // The period's frames go out together: one write per link.
@@ -301,11 +400,11 @@ pub async fn run(
         link_error = Some(err);
     }
     if let Some(link_error) = link_error {
-        let report = end_on_link_error(node, links, link_error).await?;
+        let report = end_on_link_error_with(links, link_error, || node.link_failed()).await?;
         (outcome, ended_by, error) = (report.outcome, report.ended_by, report.error);
     }
     let stats = recorder.stats();
-    let stale = node.counters().stale_periods;
+    let stale = node.stale_periods();
     let deadline_held =
         stats.is_some_and(|s| s.overruns == 0) && stale <= 1 && dropped_periods == 0;
     Ok(LoopReport {
@@ -345,7 +444,7 @@ async fn release_the_rest(links: &mut ServeLinks) -> anyhow::Result<()> {
 /// like a silent host).
 async fn serve_until(
     links: &mut ServeLinks,
-    node: &mut MirrorNode,
+    node: &mut impl ClockedNode,
     k: u64,
     deadline: Instant,
     busy_poll: bool,
@@ -371,7 +470,7 @@ async fn serve_until(
 /// Handles every frame the host has queued, without waiting (none after the end of the run).
 fn take_queued(
     links: &mut ServeLinks,
-    node: &mut MirrorNode,
+    node: &mut impl ClockedNode,
     k: u64,
     host: &mut HostHeard,
 ) -> Result<(), LinkError> {
@@ -402,12 +501,12 @@ impl HostHeard {
     /// marks the period the host was last heard; it also answers the oldest unanswered
     /// reading), the controller's Status frame in a state other than running ends the run,
     /// a malformed loop frame is counted, others are ignored.
-    fn on_frame(&mut self, node: &mut MirrorNode, frame: &CanFrame, k: u64) {
+    fn on_frame(&mut self, node: &mut impl ClockedNode, frame: &CanFrame, k: u64) {
         match Message::decode(frame) {
             Ok(Message::CoilCommand(command)) => {
                 self.last_command_period = Some(k);
                 self.unanswered_since = None;
-                node.on_command(command.seq, command.amps());
+                node.take_command(&command);
             }
             Ok(Message::Status(status))
                 if status.node == NodeId::Controller && status.state != NodeState::Running =>
@@ -415,7 +514,7 @@ impl HostHeard {
                 self.ended = true;
             }
             Ok(_) | Err(MessageError::UnknownId(_)) => {}
-            Err(_) => node.on_malformed_frame(),
+            Err(_) => node.malformed_frame(),
         }
     }
 }

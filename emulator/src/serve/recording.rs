@@ -49,6 +49,9 @@ pub struct RecordedPeriod {
     pub frames: Vec<CanFrame>,
     /// Where the AngleReading is in `frames` (a repeated Step is answered with it alone).
     pub reading: usize,
+    /// The AngleReading's stamp as recorded, s (loop time or epoch, as the log has it): a
+    /// real-time replay keeps the recorded timing from it.
+    pub reading_s: f64,
 }
 
 /// The sensor clock a recording's host used: the loop time of the sensor's counter 0, and,
@@ -188,7 +191,8 @@ impl Recording {
         let mut recording = Recording::default();
         // Node frames before the first reading, and those of the period being read.
         let mut pending: Vec<CanFrame> = Vec::new();
-        let mut reading: Option<usize> = None;
+        // Where the period's reading is in `pending`, and its stamp.
+        let mut reading: Option<(usize, f64)> = None;
         let mut ended = false;
         for (index, text_line) in text.lines().enumerate() {
             let line = index + 1;
@@ -201,16 +205,17 @@ impl Recording {
             if text_line.trim().is_empty() {
                 continue;
             }
-            let frame = match parse_record(&text_line).map_err(|error| bad(error.to_string()))? {
-                LogRecord::Frame(entry) => entry.frame,
-                LogRecord::Error(_) => continue,
-                LogRecord::Dropped(drop) => {
-                    return Err(bad(format!(
-                        "candump's socket dropped {} frame(s) on {}: the recording has a gap",
-                        drop.dropped, drop.interface
-                    )));
-                }
-            };
+            let (frame, stamp_s) =
+                match parse_record(&text_line).map_err(|error| bad(error.to_string()))? {
+                    LogRecord::Frame(entry) => (entry.frame, entry.timestamp.as_secs_f64()),
+                    LogRecord::Error(_) => continue,
+                    LogRecord::Dropped(drop) => {
+                        return Err(bad(format!(
+                            "candump's socket dropped {} frame(s) on {}: the recording has a gap",
+                            drop.dropped, drop.interface
+                        )));
+                    }
+                };
             let message = match Message::decode(&frame) {
                 Ok(message) => message,
                 Err(MessageError::UnknownId(_)) => continue,
@@ -221,15 +226,16 @@ impl Recording {
                     if ended {
                         return Err(bad("an AngleReading after the end of the run".into()));
                     }
-                    if let Some(at) = reading {
+                    if let Some((at, reading_s)) = reading {
                         recording.periods.push(RecordedPeriod {
                             frames: std::mem::take(&mut pending),
                             reading: at,
+                            reading_s,
                         });
                     }
                     check_period_counter("AngleReading", seq, recording.periods.len())
                         .map_err(bad)?;
-                    reading = Some(pending.len());
+                    reading = Some((pending.len(), stamp_s));
                     pending.push(frame);
                 }
                 Sender::Node if ended => recording.end_of_run.push(frame),
@@ -243,7 +249,7 @@ impl Recording {
                 Sender::Other => {}
             }
         }
-        let Some(at) = reading else {
+        let Some((at, reading_s)) = reading else {
             return Err(RecordingError::File {
                 path: path.to_owned(),
                 reason: "no AngleReading: nothing to serve".into(),
@@ -252,6 +258,7 @@ impl Recording {
         recording.periods.push(RecordedPeriod {
             frames: pending,
             reading: at,
+            reading_s,
         });
         Ok(recording)
     }
@@ -369,10 +376,14 @@ mod tests {
     }
 
     fn line(message: &Message) -> String {
+        line_at(1.5, message)
+    }
+
+    fn line_at(t_s: f64, message: &Message) -> String {
         let mut out = Vec::new();
         push_line(
             &mut out,
-            Timestamp::from_secs_f64(1.5),
+            Timestamp::from_secs_f64(t_s),
             "can0",
             &message.encode().unwrap(),
         );
@@ -432,6 +443,19 @@ mod tests {
             frames(&[status(NodeId::Fsm, NodeState::Ready, 3)])
         );
         assert!(recording.cycles.is_empty() && recording.clock.is_none());
+    }
+
+    #[test]
+    fn each_period_keeps_its_readings_stamp() {
+        let lines = [
+            line_at(1000.25, &Message::Sync { step: 0 }),
+            line_at(1000.5, &reading(0)),
+            line_at(1000.75, &status(NodeId::Fsm, NodeState::Running, 0)),
+            line_at(1001.0, &reading(1)),
+        ];
+        let recording = parse(&lines).unwrap();
+        let stamps: Vec<f64> = recording.periods.iter().map(|p| p.reading_s).collect();
+        assert_eq!(stamps, [1000.5, 1001.0]);
     }
 
     #[test]

@@ -13,6 +13,14 @@
 //! answered, the controller's Status ends the run with the recorded answer (or a
 //! Status(ready) when none was recorded). A Step past the recording's last period is an error
 //! ([`ReplayError::Exhausted`]): there is nothing recorded to answer it with.
+//!
+//! In real time ([`ClockedNode`]) the node is the clock master as the emulated mirror is: period
+//! k's recorded frames and cycles go out at its reading's recorded time after the first
+//! reading's (a lockstep recording's stamps are k periods apart; a real-time or bench
+//! recording's keep their jitter and stalls), whatever the controller commands; each command
+//! is compared with the recorded one of the period its counter names.
+
+use std::time::Duration;
 
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::message::{
@@ -22,6 +30,7 @@ use scanhil_protocol::plant_units::ActuatorPair;
 
 use super::lockstep::LockstepAnswers;
 use super::lockstep_node::{LockstepNodeError, NodeReply, NodeSend, fault_frame, status_frame};
+use super::realtime::ClockedNode;
 use super::recording::Recording;
 
 /// Coil current counts (uA) per ampere on the wire.
@@ -121,6 +130,8 @@ pub struct ReplayCounters {
     pub out_of_order_steps: u64,
     /// Frames with a loop id and a malformed payload.
     pub malformed_frames: u64,
+    /// Real time: periods sent with no fresh command since the period before.
+    pub stale_periods: u64,
 }
 
 /// A recorded session answering the controller in lockstep.
@@ -136,6 +147,8 @@ pub struct ReplayNode {
     held: CoilCommand,
     comparison: CommandComparison,
     counters: ReplayCounters,
+    /// Real time: a command came since the last period went out.
+    fresh_command: bool,
 }
 
 impl ReplayNode {
@@ -158,6 +171,7 @@ impl ReplayNode {
             held: CoilCommand::default(),
             comparison: CommandComparison::default(),
             counters,
+            fresh_command: false,
         }
     }
 
@@ -197,11 +211,31 @@ impl ReplayNode {
         self.on_link_timeout(0)
     }
 
+    /// A coil command, compared with the recorded one of the period its counter names (the
+    /// period nearest the next one with that counter: in lockstep the next, in real time the
+    /// next or one before when it came late).
     fn on_command(&mut self, command: CoilCommand) {
-        let period = self.next_period;
-        self.comparison
-            .compare(period as u64, &command, self.recording.commands.get(period));
+        let next = self.next_period as u64;
+        let behind = (next as u16).wrapping_sub(command.seq) as i16;
+        let period = next.saturating_add_signed(-i64::from(behind));
+        let recorded = usize::try_from(period)
+            .ok()
+            .and_then(|period| self.recording.commands.get(period));
+        self.comparison.compare(period, &command, recorded);
         self.held = command;
+        self.fresh_command = true;
+    }
+
+    /// The node's answer to the controller's end of the run: the recorded one, or Status(ready)
+    /// when none was recorded.
+    fn end_of_run(&mut self) -> Result<CanFrame, MessageError> {
+        if self.state != NodeState::Fault {
+            self.state = NodeState::Ready;
+        }
+        match self.recording.end_of_run.first() {
+            Some(frame) => Ok(*frame),
+            None => status_frame(NodeState::Ready, self.next_period as u64, self.period_s),
+        }
     }
 
     /// Step(`step`): the recorded frames of the next period with its sensor cycles after the
@@ -268,14 +302,7 @@ impl LockstepAnswers for ReplayNode {
             Message::Status(status)
                 if status.node == NodeId::Controller && status.state != NodeState::Running =>
             {
-                if self.state != NodeState::Fault {
-                    self.state = NodeState::Ready;
-                }
-                let ready = match self.recording.end_of_run.first() {
-                    Some(frame) => *frame,
-                    None => status_frame(NodeState::Ready, self.next_period as u64, self.period_s)?,
-                };
-                Ok(NodeReply::EndOfRun(ready))
+                Ok(NodeReply::EndOfRun(self.end_of_run()?))
             }
             _ => Ok(NodeReply::Ignored),
         }
@@ -293,6 +320,65 @@ impl LockstepAnswers for ReplayNode {
 
     fn loop_time_s(&self) -> f64 {
         self.next_period as f64 * self.period_s
+    }
+}
+
+impl ClockedNode for ReplayNode {
+    fn period_s(&self) -> f64 {
+        self.period_s
+    }
+
+    fn next_period(&self) -> u64 {
+        self.next_period as u64
+    }
+
+    /// The reading's recorded time after the first one's; past the recording, a period on
+    /// from its last.
+    fn period_start(&self, k: u64) -> Duration {
+        let periods = &self.recording.periods;
+        let first_s = periods.first().map_or(0.0, |p| p.reading_s);
+        let last = periods.len().saturating_sub(1);
+        let (at, extra) = match usize::try_from(k) {
+            Ok(k) if k <= last => (k, 0),
+            _ => (last, k - last as u64),
+        };
+        let recorded_s = periods.get(at).map_or(0.0, |p| p.reading_s) - first_s;
+        let start_s = recorded_s.max(0.0) + extra as f64 * self.period_s;
+        Duration::try_from_secs_f64(start_s).unwrap_or(Duration::MAX)
+    }
+
+    /// The recorded frames of the period, its cycles after the reading; the heartbeats are
+    /// the recorded ones.
+    fn tick(&mut self, _heartbeat: bool) -> anyhow::Result<Vec<NodeSend>> {
+        if !std::mem::take(&mut self.fresh_command) && self.next_period > 0 {
+            self.counters.stale_periods += 1;
+        }
+        let step = (self.next_period as u64 & u64::from(u32::MAX)) as u32;
+        Ok(self.step(step)?)
+    }
+
+    fn stale_periods(&self) -> u64 {
+        self.counters.stale_periods
+    }
+
+    fn take_command(&mut self, command: &CoilCommand) {
+        self.on_command(*command);
+    }
+
+    fn malformed_frame(&mut self) {
+        self.counters.malformed_frames += 1;
+    }
+
+    fn watchdog_fired(&mut self, missed_periods: u32) -> Result<[CanFrame; 2], MessageError> {
+        self.on_link_timeout(missed_periods)
+    }
+
+    fn link_failed(&mut self) -> Result<[CanFrame; 2], MessageError> {
+        self.on_link_failure()
+    }
+
+    fn run_ended(&mut self) -> Result<CanFrame, MessageError> {
+        self.end_of_run()
     }
 }
 
@@ -342,14 +428,17 @@ mod tests {
                 RecordedPeriod {
                     frames: vec![reading(0)],
                     reading: 0,
+                    reading_s: 10.001,
                 },
                 RecordedPeriod {
                     frames: vec![heartbeat(0), reading(1)],
                     reading: 1,
+                    reading_s: 10.002,
                 },
                 RecordedPeriod {
                     frames: vec![reading(2)],
                     reading: 0,
+                    reading_s: 10.0045,
                 },
             ],
             commands: (0..3)
@@ -444,6 +533,74 @@ mod tests {
         assert!(step(&mut node, 5).is_empty());
         assert_eq!(node.counters().out_of_order_steps, 2);
         assert_eq!(step(&mut node, 2)[0], NodeSend::Frame(reading(2)));
+    }
+
+    #[test]
+    fn in_real_time_periods_start_at_their_recorded_times_and_go_on_a_period_apart() {
+        let node = node();
+        let start_ms = |k: u64| node.period_start(k).as_secs_f64() * 1e3;
+        let starts: Vec<f64> = (0..5).map(start_ms).collect();
+        for (start, expected) in starts.iter().zip([0.0, 1.0, 3.5, 4.5, 5.5]) {
+            assert!((start - expected).abs() < 1e-9, "{starts:?}");
+        }
+        assert_eq!(ClockedNode::period_s(&node), PERIOD_S);
+    }
+
+    #[test]
+    fn in_real_time_each_tick_sends_its_period_and_stale_periods_are_counted() {
+        let mut node = node();
+        assert_eq!(
+            node.tick(true).unwrap(),
+            [NodeSend::Frame(reading(0)), cycles(&[0, 1])]
+        );
+        assert_eq!(ClockedNode::next_period(&node), 1);
+        // No command before period 1 went out: stale.
+        assert_eq!(node.tick(false).unwrap()[1], NodeSend::Frame(reading(1)));
+        assert_eq!(node.stale_periods(), 1);
+        node.take_command(&command(2, 20, -2));
+        node.tick(false).unwrap();
+        assert_eq!(node.stale_periods(), 1);
+        assert!(node.tick(false).is_err(), "past the recording");
+        node.malformed_frame();
+        assert_eq!(node.counters().malformed_frames, 1);
+    }
+
+    #[test]
+    fn in_real_time_a_command_is_compared_with_the_period_its_counter_names() {
+        let mut node = node();
+        node.tick(false).unwrap();
+        node.tick(false).unwrap();
+        // Next is period 2: the command for period 1 came late, the one for 2 on time.
+        node.take_command(&command(1, 10, -1));
+        node.take_command(&command(2, 21, -2));
+        let comparison = node.comparison();
+        assert_eq!((comparison.compared, comparison.differing), (2, 1));
+        assert_eq!(comparison.first_divergence.unwrap().period, 2);
+        let ready = node.run_ended().unwrap();
+        assert!(matches!(
+            Message::decode(&ready).unwrap(),
+            Message::Status(Status {
+                state: NodeState::Ready,
+                ..
+            })
+        ));
+        assert_eq!(node.state(), NodeState::Ready);
+        let [fault, status] = node.watchdog_fired(7).unwrap();
+        assert!(matches!(
+            Message::decode(&fault).unwrap(),
+            Message::Fault(Fault {
+                kind: FaultKind::LinkTimeout,
+                ..
+            })
+        ));
+        assert!(matches!(
+            Message::decode(&status).unwrap(),
+            Message::Status(Status {
+                state: NodeState::Fault,
+                ..
+            })
+        ));
+        assert_eq!(node.link_failed().unwrap().len(), 2);
     }
 
     #[test]
