@@ -263,7 +263,8 @@ fn a_node_skipping_a_counter_fails_the_sequence_check() {
 
 #[test]
 fn a_node_reporting_angles_out_of_range_fails_the_range_check() {
-    // Ten times the true angles: near zero at rest, beyond the mirror's range under the drive.
+    // A hundred times the true angles: near zero at rest, beyond the mirror's range under the
+    // drive (in real time too, where the drive is a third of lockstep's).
     conformance_against("out-of-range").assert_fails_exactly(&[(
         "angles_in_range",
         &["alpha", "mrad, beyond the mirror's +-31.416 mrad"],

@@ -18,7 +18,7 @@ use super::lockstep_node::NodeSend;
 /// one whose counter skips.
 pub const MISBEHAVE_FROM_ANSWER: u64 = 1_000;
 /// Factor on the angles of the `out-of-range` node (angles reported in the wrong unit).
-pub const OUT_OF_RANGE_FACTOR: f64 = 10.0;
+pub const OUT_OF_RANGE_FACTOR: f64 = 100.0;
 /// How late the `late-answers` node answers, as a multiple of its watchdog's whole allowance
 /// (the answer deadline the host is expected to use).
 pub const LATE_ANSWER_ALLOWANCES: f64 = 1.5;
@@ -228,7 +228,7 @@ mod tests {
     #[test]
     fn out_of_range_and_frozen_angles_rewrite_the_angles_only() {
         let scaled = run(Misbehaviour::OutOfRange, 3);
-        assert_eq!(decoded(&scaled[2]), [decode(&reading(2, 1020))]);
+        assert_eq!(decoded(&scaled[2]), [decode(&reading(2, 10200))]);
         let frozen = run(Misbehaviour::FrozenAngles, 3);
         assert_eq!(decoded(&frozen[2]), [decode(&reading(2, 100))]);
     }
