@@ -288,13 +288,13 @@ mod tests {
         let mut clock = ReadingClock::new(PERIOD_S, ALLOWANCE_S);
         clock.arrived(0, 0, 0.0);
         clock.arrived(1, 1, PERIOD_S);
-        clock.arrived(4, 2, 4.0 * PERIOD_S);
-        clock.arrived(6, 5, 6.0 * PERIOD_S);
-        assert_eq!(clock.missed(), (3, Some("readings 2 to 3 never came")));
+        clock.arrived(5, 2, 5.0 * PERIOD_S);
+        clock.arrived(7, 6, 7.0 * PERIOD_S);
+        assert_eq!(clock.missed(), (4, Some("readings 2 to 4 never came")));
         let mut once = ReadingClock::new(PERIOD_S, ALLOWANCE_S);
         once.arrived(0, 0, 0.0);
-        once.arrived(4, 3, ALLOWANCE_S);
-        assert_eq!(once.missed(), (1, Some("reading 3 never came")));
+        once.arrived(2, 1, ALLOWANCE_S);
+        assert_eq!(once.missed(), (1, Some("reading 1 never came")));
         // A silence of exactly the allowance is within it.
         assert!(once.on_time().is_ok());
         assert_eq!(clock.readings(), 4);
