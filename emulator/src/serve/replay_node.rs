@@ -539,8 +539,8 @@ mod tests {
     fn in_real_time_periods_start_at_their_recorded_times_and_go_on_a_period_apart() {
         let node = node();
         let start_ms = |k: u64| node.period_start(k).as_secs_f64() * 1e3;
-        let starts: Vec<f64> = (0..5).map(start_ms).collect();
-        for (start, expected) in starts.iter().zip([0.0, 1.0, 3.5, 4.5, 5.5]) {
+        let starts: Vec<f64> = (0..7).map(start_ms).collect();
+        for (start, expected) in starts.iter().zip([0.0, 1.0, 3.5, 4.5, 5.5, 6.5, 7.5]) {
             assert!((start - expected).abs() < 1e-9, "{starts:?}");
         }
         assert_eq!(ClockedNode::period_s(&node), PERIOD_S);
@@ -554,12 +554,15 @@ mod tests {
             [NodeSend::Frame(reading(0)), cycles(&[0, 1])]
         );
         assert_eq!(ClockedNode::next_period(&node), 1);
+        // Period 0 has no command before it to miss.
+        assert_eq!(node.stale_periods(), 0);
         // No command before period 1 went out: stale.
         assert_eq!(node.tick(false).unwrap()[1], NodeSend::Frame(reading(1)));
         assert_eq!(node.stale_periods(), 1);
         node.take_command(&command(2, 20, -2));
         node.tick(false).unwrap();
         assert_eq!(node.stale_periods(), 1);
+        assert_eq!(ClockedNode::next_period(&node), 3);
         assert!(node.tick(false).is_err(), "past the recording");
         node.malformed_frame();
         assert_eq!(node.counters().malformed_frames, 1);
