@@ -166,9 +166,9 @@ impl ClockedNode for MirrorNode {
 /// arrived). Before the clock starts the sensor answers the host's ILD commands as they come;
 /// during the run, at each period's samples.
 ///
-/// A link error once the clock runs ends the ticks as [`end_on_link_error`] says (a failure:
-/// coils zeroed, the node's fault frame attempted, the reason in the report), the timing so
-/// far kept.
+/// A link error once the clock runs ends the ticks as [`end_on_link_error_with`] says (a
+/// failure: coils zeroed, the node's fault frame attempted, the reason in the report), the
+/// timing so far kept.
 ///
 /// # Errors
 /// A link error before the clock starts, the host's hang-up included (`serve` ends the run on
