@@ -116,7 +116,22 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// How far below the smallest nonzero error an error of 0 (the exact reference against itself)
+/// is drawn, so the log axis keeps it in sight.
+const ZERO_ERROR_BELOW: f64 = 10.0;
+
+/// The log-log chart of run time against error, a series per method. An error of 0 (the
+/// reference row) has no place on a log axis: it is drawn [`ZERO_ERROR_BELOW`] times below the
+/// smallest nonzero error, and the axis label says so.
 fn work_precision_chart(report: &Report) -> Chart {
+    let errors = || report.rows.iter().filter_map(|r| r.max_error_urad);
+    let smallest = errors().filter(|&e| e > 0.0).fold(f64::INFINITY, f64::min);
+    let zero_at = if smallest.is_finite() {
+        smallest / ZERO_ERROR_BELOW
+    } else {
+        1.0
+    };
+    let any_zero = errors().any(|e| e == 0.0);
     let series = Method::ALL
         .iter()
         .map(|&method| Series {
@@ -125,11 +140,20 @@ fn work_precision_chart(report: &Report) -> Chart {
                 .rows
                 .iter()
                 .filter(|r| r.method == method)
-                .filter_map(|r| Some((r.run_time_per_sim_s?, r.max_error_urad?)))
+                .filter_map(|r| {
+                    let error = r.max_error_urad?;
+                    let drawn = if error == 0.0 { zero_at } else { error };
+                    Some((r.run_time_per_sim_s?, drawn))
+                })
                 .collect(),
             markers: true,
         })
         .collect();
+    let zero_note = if any_zero {
+        format!(" (0, the reference, drawn at {zero_at:.1e})")
+    } else {
+        String::new()
+    };
     Chart {
         title: format!(
             "Work-precision, {} (Ta = {} us, parts: {})",
@@ -138,7 +162,7 @@ fn work_precision_chart(report: &Report) -> Chart {
             report.active_parts.join(", ")
         ),
         x_label: "run time per simulated second [s/s]".into(),
-        y_label: "max angle error vs exact [urad]".into(),
+        y_label: format!("max angle error vs exact [urad]{zero_note}"),
         x_axis: Axis::Log,
         y_axis: Axis::Log,
         series,
@@ -183,4 +207,69 @@ fn print_table(report: &Report) -> std::io::Result<()> {
         )?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(method: Method, substeps: u32, error_urad: Option<f64>, run_s: f64) -> StudyRow {
+        StudyRow {
+            method,
+            substeps,
+            step_s: 5e-5 / f64::from(substeps),
+            max_error_urad: error_urad,
+            rms_error_urad: error_urad,
+            run_time_per_sim_s: Some(run_s),
+            refused: error_urad.is_none().then(|| "unstable".to_owned()),
+        }
+    }
+
+    fn report(rows: Vec<StudyRow>) -> Report {
+        Report {
+            plant: "test".into(),
+            active_parts: vec!["axes"],
+            period_s: 5e-5,
+            duration_s: 0.1,
+            drive: String::new(),
+            reference: "exact_zoh, 1 sub-step per period",
+            rows,
+        }
+    }
+
+    fn points(chart: &Chart, method: Method) -> Vec<(f64, f64)> {
+        chart
+            .series
+            .iter()
+            .find(|s| s.label == method.name())
+            .map(|s| s.points.clone())
+            .unwrap()
+    }
+
+    #[test]
+    fn the_exact_reference_stays_on_the_log_plot_below_the_smallest_error() {
+        let chart = work_precision_chart(&report(vec![
+            row(Method::ExactZoh, 1, Some(0.0), 0.01),
+            row(Method::ExactZoh, 2, Some(2e-3), 0.02),
+            row(Method::Rk4, 1, None, 0.0),
+            row(Method::Rk4, 2, Some(0.5), 0.03),
+        ]));
+        assert_eq!(
+            points(&chart, Method::ExactZoh),
+            [(0.01, 2e-4), (0.02, 2e-3)]
+        );
+        assert_eq!(points(&chart, Method::Rk4), [(0.03, 0.5)]);
+        assert!(
+            chart
+                .y_label
+                .ends_with("(0, the reference, drawn at 2.0e-4)"),
+            "{}",
+            chart.y_label
+        );
+        let nonzero = work_precision_chart(&report(vec![row(Method::Rk4, 2, Some(0.5), 0.03)]));
+        assert_eq!(nonzero.y_label, "max angle error vs exact [urad]");
+        let only_zero =
+            work_precision_chart(&report(vec![row(Method::ExactZoh, 1, Some(0.0), 0.01)]));
+        assert_eq!(points(&only_zero, Method::ExactZoh), [(0.01, 1.0)]);
+    }
 }
