@@ -219,16 +219,29 @@ impl OpticalChain {
             return Vec::new();
         };
         let instants: Vec<_> = sensor.sample_instants(start_s, end_s).collect();
+        // Linear in the period; an exposure reaching back before its start goes on the same
+        // line (the angles of the period before are not kept).
+        let angles_at = |t_s: f64| {
+            let f = (t_s - start_s) / (end_s - start_s);
+            SensingPair {
+                alpha: start_rad.alpha + f * (end_rad.alpha - start_rad.alpha),
+                beta: start_rad.beta + f * (end_rad.beta - start_rad.beta),
+            }
+        };
         instants
             .into_iter()
             .map(|instant| {
-                let f = (instant.t_s - start_s) / (end_s - start_s);
-                let angles = SensingPair {
-                    alpha: start_rad.alpha + f * (end_rad.alpha - start_rad.alpha),
-                    beta: start_rad.beta + f * (end_rad.beta - start_rad.beta),
+                let outcome = if sensor.exposure_s() > 0.0 {
+                    let outcomes: Vec<_> = sensor
+                        .exposure_instants(instant.t_s)
+                        .into_iter()
+                        .map(|t_s| self.optics.observe(angles_at(t_s)).outcome)
+                        .collect();
+                    Ild2300::exposed(&outcomes)
+                } else {
+                    self.optics.observe(angles_at(instant.t_s)).outcome
                 };
-                let reading = self.optics.observe(angles);
-                sensor.measure(instant, &reading.outcome)
+                sensor.measure(instant, &outcome)
             })
             .collect()
     }

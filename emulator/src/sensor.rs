@@ -27,6 +27,8 @@ pub const DEFAULT_MEASURING_RATE_HZ: f64 = 20_000.0;
 pub const DEFAULT_NOISE_RMS_UM: f64 = 1.5;
 /// Modulus of the measured-value counter (18 bits).
 pub const COUNTER_MODULUS: u64 = RAW_MAX as u64 + 1;
+/// Points at which the optics are looked at during one exposure (`exposure_us` above 0).
+pub const EXPOSURE_POINTS: usize = 5;
 /// ChaCha stream of the sensor's noise, so it is independent of other parts seeded alike.
 const NOISE_STREAM: u64 = 0x11D_2300;
 
@@ -62,6 +64,12 @@ pub struct SensorConfig {
     /// Measuring range (ILD 2300-100 by default).
     #[serde(default = "default_range")]
     pub range: MeasuringRange,
+    /// How long each measuring cycle exposes the receiver, us (0, the default: the distance
+    /// at the cycle's instant alone). A spot that moves meanwhile is seen all along its path:
+    /// the value is the average of the distances at [`EXPOSURE_POINTS`] instants spread over
+    /// the exposure, which ends at the cycle's instant. At most one cycle.
+    #[serde(default)]
+    pub exposure_us: f64,
 }
 
 impl Default for SensorConfig {
@@ -73,6 +81,7 @@ impl Default for SensorConfig {
             clock_drift_ppm: 0.0,
             counter_start: 0,
             range: MeasuringRange::ILD2300_100,
+            exposure_us: 0.0,
         }
     }
 }
@@ -162,6 +171,17 @@ impl Ild2300 {
                 "below 2^18",
             );
         }
+        let cycle_us = 1e6 / config.measuring_rate_hz;
+        if !(config.exposure_us.is_finite()
+            && config.exposure_us >= 0.0
+            && config.exposure_us <= cycle_us)
+        {
+            return bad(
+                "exposure_us",
+                config.exposure_us,
+                "finite, from 0 to one measuring cycle (1e6 / measuring_rate_hz us)",
+            );
+        }
         let span = config.range.span_mm;
         if !(span.is_finite() && span > 0.0 && config.range.start_mm.is_finite()) {
             return bad("range.span_mm", span, "finite and > 0 (start finite)");
@@ -217,6 +237,47 @@ impl Ild2300 {
             index,
             t_s: offset + index as f64 / rate,
         })
+    }
+
+    /// The exposure of each cycle, s (0: one instant).
+    #[must_use]
+    pub fn exposure_s(&self) -> f64 {
+        self.config.exposure_us * 1e-6
+    }
+
+    /// The instants, in order, at which the optics are looked at for a cycle at `t_s`: the
+    /// middles of [`EXPOSURE_POINTS`] equal slices of the exposure ending at `t_s`; `t_s` alone
+    /// without exposure.
+    #[must_use]
+    pub fn exposure_instants(&self, t_s: f64) -> Vec<f64> {
+        let exposure_s = self.exposure_s();
+        if exposure_s <= 0.0 {
+            return vec![t_s];
+        }
+        let slice_s = exposure_s / EXPOSURE_POINTS as f64;
+        (0..EXPOSURE_POINTS)
+            .map(|j| t_s - exposure_s + (j as f64 + 0.5) * slice_s)
+            .collect()
+    }
+
+    /// What the receiver made of the optics over one exposure: the average of the distances
+    /// seen (the part of the path the spot was shaded or off the surface adds no light), or,
+    /// when none was, the outcome at the exposure's end.
+    #[must_use]
+    pub fn exposed(outcomes: &[OpticalOutcome]) -> OpticalOutcome {
+        let distances: Vec<f64> = outcomes
+            .iter()
+            .filter_map(|outcome| match outcome {
+                OpticalOutcome::Distance { z_meas_mm } => Some(*z_meas_mm),
+                OpticalOutcome::Miss | OpticalOutcome::Shaded(_) => None,
+            })
+            .collect();
+        if distances.is_empty() {
+            return outcomes.last().copied().unwrap_or(OpticalOutcome::Miss);
+        }
+        OpticalOutcome::Distance {
+            z_meas_mm: distances.iter().sum::<f64>() / distances.len() as f64,
+        }
     }
 
     /// The sensor's output at `instant` for what the optics deliver.
@@ -413,6 +474,65 @@ mod tests {
         assert!((rms_um - 5.02).abs() < 0.15, "{rms_um}");
         assert_eq!(a, draw(1));
         assert_ne!(a, draw(2));
+    }
+
+    #[test]
+    fn an_exposure_looks_at_the_middles_of_its_slices_and_averages_what_it_sees() {
+        let instant = sensor(SensorConfig::default(), false);
+        assert_eq!(instant.exposure_instants(1.0), [1.0]);
+        let exposed = sensor(
+            SensorConfig {
+                exposure_us: 40.0,
+                ..SensorConfig::default()
+            },
+            false,
+        );
+        assert!((exposed.exposure_s() - 40e-6).abs() < 1e-18);
+        let instants = exposed.exposure_instants(1e-3);
+        let expected_us = [964.0, 972.0, 980.0, 988.0, 996.0];
+        assert_eq!(instants.len(), EXPOSURE_POINTS);
+        for (t_s, expected) in instants.iter().zip(expected_us) {
+            assert!((t_s * 1e6 - expected).abs() < 1e-9, "{instants:?}");
+        }
+        let shaded = OpticalOutcome::Shaded(ShadeReason::ReflectionPathBlocked);
+        assert_eq!(
+            Ild2300::exposed(&[
+                distance(100.0),
+                shaded,
+                distance(103.0),
+                OpticalOutcome::Miss
+            ]),
+            distance(101.5)
+        );
+        assert_eq!(
+            Ild2300::exposed(&[distance(100.0), distance(101.0), distance(105.0)]),
+            distance(102.0)
+        );
+        assert_eq!(Ild2300::exposed(&[OpticalOutcome::Miss, shaded]), shaded);
+        assert_eq!(Ild2300::exposed(&[]), OpticalOutcome::Miss);
+    }
+
+    #[test]
+    fn an_exposure_longer_than_a_cycle_or_negative_is_refused() {
+        for exposure_us in [-1.0, 50.5, f64::NAN] {
+            let err = Ild2300::new(
+                &SensorConfig {
+                    exposure_us,
+                    ..SensorConfig::default()
+                },
+                0,
+                false,
+            )
+            .unwrap_err();
+            assert_eq!(err.field, "exposure_us");
+        }
+        let whole_cycle = SensorConfig {
+            exposure_us: 50.0,
+            ..SensorConfig::default()
+        };
+        assert!(Ild2300::new(&whole_cycle, 0, false).is_ok());
+        let c: SensorConfig = serde_json::from_str(r#"{"exposure_us": 20.0}"#).unwrap();
+        assert_eq!(c.exposure_us, 20.0);
     }
 
     #[test]

@@ -96,3 +96,60 @@ fn leaving_out_sensor_and_shading_builds_neither() {
     let full = Plant::from_scene(&fixture("step-3mm.json")).unwrap();
     assert!(full.optics().unwrap().shading() && full.sensor().is_some());
 }
+
+/// The noise-free distances of the samples of `scene` driven by a 2 A, 50 Hz sine on coil A
+/// for 0.02 s, by sample index.
+fn driven_distances(scene: &Scene) -> Vec<(u32, f64)> {
+    let mut plant = Plant::from_scene(scene).unwrap();
+    let mut distances = Vec::new();
+    for k in 0..400 {
+        let t_s = k as f64 * 50e-6;
+        let a = 2.0 * (std::f64::consts::TAU * 50.0 * t_s).sin();
+        let out = plant.step(ActuatorPair { a, b: 0.0 }).unwrap();
+        for sample in out.sensor_samples {
+            if let Some(z_mm) = sample.true_distance_mm {
+                distances.push((sample.counter, z_mm));
+            }
+        }
+    }
+    distances
+}
+
+#[test]
+fn an_exposure_sees_the_moving_spot_at_the_middle_of_its_path() {
+    // On the tilted plane the distance changes along the spot's path; over a 40 us exposure
+    // the average is (to second order) the distance at the exposure's middle, 20 us before the
+    // cycle's instant: the instantaneous sensor sampled 20 us earlier gives it.
+    let mut scene = fixture("tilted-plane.json");
+    scene
+        .parts
+        .retain(|part| part.name() != "sensor_noise" && part.name() != "angle_sensor_noise");
+    let with = |exposure_us: f64, clock_offset_s: f64| {
+        let mut scene = scene.clone();
+        scene.sensor = Some(scanhil_emulator::sensor::SensorConfig {
+            exposure_us,
+            clock_offset_s,
+            ..scene.sensor.unwrap_or_default()
+        });
+        driven_distances(&scene)
+    };
+    let exposed = with(40.0, 0.0);
+    let middle = with(0.0, -20e-6);
+    let instant = with(0.0, 0.0);
+    let largest_gap = |other: &[(u32, f64)]| {
+        exposed
+            .iter()
+            .filter_map(|(counter, z)| {
+                let (_, z_other) = other.iter().find(|(c, _)| c == counter)?;
+                Some((z - z_other).abs())
+            })
+            .fold(0.0, f64::max)
+    };
+    let from_middle_mm = largest_gap(&middle);
+    let from_instant_mm = largest_gap(&instant);
+    assert!(exposed.len() > 350, "{} samples", exposed.len());
+    assert!(
+        from_middle_mm < 1e-4 && from_instant_mm > 20.0 * from_middle_mm,
+        "the exposure's average {from_middle_mm} mm from the middle's distance, {from_instant_mm} mm from the instant's"
+    );
+}
