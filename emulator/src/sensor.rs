@@ -265,18 +265,20 @@ impl Ild2300 {
     /// when none was, the outcome at the exposure's end.
     #[must_use]
     pub fn exposed(outcomes: &[OpticalOutcome]) -> OpticalOutcome {
-        let distances: Vec<f64> = outcomes
+        let (sum_mm, seen) = outcomes
             .iter()
             .filter_map(|outcome| match outcome {
                 OpticalOutcome::Distance { z_meas_mm } => Some(*z_meas_mm),
                 OpticalOutcome::Miss | OpticalOutcome::Shaded(_) => None,
             })
-            .collect();
-        if distances.is_empty() {
+            .fold((0.0, 0u32), |(sum_mm, seen), z_mm| {
+                (sum_mm + z_mm, seen + 1)
+            });
+        if seen == 0 {
             return outcomes.last().copied().unwrap_or(OpticalOutcome::Miss);
         }
         OpticalOutcome::Distance {
-            z_meas_mm: distances.iter().sum::<f64>() / distances.len() as f64,
+            z_meas_mm: sum_mm / f64::from(seen),
         }
     }
 

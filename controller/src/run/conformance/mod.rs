@@ -255,13 +255,20 @@ impl Session<'_> {
 struct Drive {
     /// Exchanges done.
     exchanges: u64,
-    /// Lockstep: how the answers came.
-    answers: AnswerTiming,
-    /// Real time: when the readings came.
-    readings: ReadingClock,
-    /// Lockstep: the first reading out of sequence.
-    first_gap: Option<String>,
+    /// How the readings came, as the node's timing measures it.
+    timing: DriveTiming,
     angles: AngleRange,
+}
+
+/// How the drive's readings came.
+enum DriveTiming {
+    /// Lockstep: how each Step was answered, and the first reading out of sequence.
+    Lockstep {
+        answers: AnswerTiming,
+        first_gap: Option<String>,
+    },
+    /// Real time: when each reading came.
+    Realtime(ReadingClock),
 }
 
 /// Runs the mirror node's checks and, when given, the sensor's, as `selection` says (the
@@ -290,13 +297,13 @@ pub async fn run_checks(
     let drive = drive(&mut session, sensor.as_deref_mut()).await;
     let mirror = &mut *session.mirror;
     let counters = mirror.counters();
-    match session.timing {
-        TimingMode::Lockstep => {
+    match drive.timing {
+        DriveTiming::Lockstep { answers, first_gap } => {
             if selection.runs("answers_in_time") {
                 verdicts.add(
                     "answers_in_time",
-                    drive.answers.passed(),
-                    drive.answers.detail(drive.exchanges),
+                    answers.passed(),
+                    answers.detail(drive.exchanges),
                     start.elapsed().as_secs_f64(),
                 );
             }
@@ -306,7 +313,7 @@ pub async fn run_checks(
             verdicts.add_if_selected(
                 "angle_sequence_gapless",
                 in_sequence,
-                match drive.first_gap {
+                match first_gap {
                     Some(first) if !in_sequence => format!(
                         "{out_of_sequence} of {} readings out of sequence; first: {first}",
                         counters.angle_readings
@@ -318,9 +325,9 @@ pub async fn run_checks(
                 },
             );
         }
-        TimingMode::Realtime => {
+        DriveTiming::Realtime(readings) => {
             if selection.runs("readings_on_time") {
-                let on_time = drive.readings.on_time();
+                let on_time = readings.on_time();
                 verdicts.add(
                     "readings_on_time",
                     on_time.is_ok(),
@@ -328,10 +335,10 @@ pub async fn run_checks(
                     start.elapsed().as_secs_f64(),
                 );
             }
-            verdicts.add_verdict("reading_rate", drive.readings.rate());
+            verdicts.add_verdict("reading_rate", readings.rate());
             verdicts.add_verdict(
                 "angle_sequence_gapless",
-                gapless_in_real_time(&drive.readings, counters.late_readings),
+                gapless_in_real_time(&readings, counters.late_readings),
             );
         }
     }
@@ -419,11 +426,18 @@ async fn drive(session: &mut Session<'_>, mut sensor: Option<&mut SensorLink>) -
             REALTIME_EXCITATION,
         ),
     };
+    let timing = match session.timing {
+        TimingMode::Lockstep => DriveTiming::Lockstep {
+            answers: AnswerTiming::default(),
+            first_gap: None,
+        },
+        TimingMode::Realtime => {
+            DriveTiming::Realtime(ReadingClock::new(period_s, allowance.as_secs_f64()))
+        }
+    };
     let mut drive = Drive {
         exchanges: 0,
-        answers: AnswerTiming::default(),
-        readings: ReadingClock::new(period_s, allowance.as_secs_f64()),
-        first_gap: None,
+        timing,
         angles: AngleRange::new(excitation),
     };
     let wait = allowance.saturating_mul(LATE_WAIT_ALLOWANCES);
@@ -447,28 +461,28 @@ async fn drive(session: &mut Session<'_>, mut sensor: Option<&mut SensorLink>) -
             Ok(reading) => reading,
             Err(error) => {
                 let lost = Some(format!("period {expected}: {error}"));
-                drive.answers.lost.clone_from(&lost);
-                drive.readings.lost = lost;
+                match &mut drive.timing {
+                    DriveTiming::Lockstep { answers, .. } => answers.lost = lost,
+                    DriveTiming::Realtime(readings) => readings.lost = lost,
+                }
                 break;
             }
         };
-        match session.timing {
-            TimingMode::Lockstep => {
-                drive.answers.answered(expected, t0.elapsed(), allowance);
-                if reading.offset != 0 && drive.first_gap.is_none() {
-                    drive.first_gap = Some(format!(
+        match &mut drive.timing {
+            DriveTiming::Lockstep { answers, first_gap } => {
+                answers.answered(expected, t0.elapsed(), allowance);
+                if reading.offset != 0 && first_gap.is_none() {
+                    *first_gap = Some(format!(
                         "period {expected}: AngleReading counter {}, expected {}",
                         (expected as u16).wrapping_add(reading.offset as u16),
                         expected as u16
                     ));
                 }
             }
-            TimingMode::Realtime => {
+            DriveTiming::Realtime(readings) => {
                 let first = *first_arrival.get_or_insert(reading.arrival);
                 let arrival_s = reading.arrival.saturating_duration_since(first);
-                drive
-                    .readings
-                    .arrived(reading.period, expected, arrival_s.as_secs_f64());
+                readings.arrived(reading.period, expected, arrival_s.as_secs_f64());
             }
         }
         drive.angles.add(reading.period, reading.angles);
