@@ -357,6 +357,47 @@ fn conformance_refuses_rates_and_allowances_that_cannot_run_instead_of_panicking
 }
 
 #[test]
+fn conformance_in_real_time_refuses_the_lockstep_allowance_and_a_too_long_watchdog() {
+    // In real time the allowance is one period: a lockstep allowance given is refused, and the
+    // watchdog is checked in periods of --rate-hz (5e4 periods at 0.5 Hz is over a day; of
+    // lockstep's 0.01 s it would be 500 s).
+    for (extra, flag, reason) in [
+        (
+            ["--answer-allowance-s", "0.01"],
+            "--answer-allowance-s",
+            "applies to --timing lockstep only",
+        ),
+        (
+            ["--watchdog-periods", "50000"],
+            "--watchdog-periods",
+            "50000 periods of 2 s wait 100000 s in all, more than 86400 s",
+        ),
+    ] {
+        let mut args = vec![
+            "conformance",
+            "--fsm",
+            "slcan:/nonexistent",
+            "--timing",
+            "realtime",
+            "--rate-hz",
+            "0.5",
+        ];
+        args.extend(extra);
+        let out = scanhil(&args);
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.contains(&format!("error: {flag}: ")) && stderr.contains(reason),
+            "{stderr}"
+        );
+        assert!(
+            !stderr.contains("nonexistent"),
+            "refused before the link opens: {stderr}"
+        );
+    }
+}
+
+#[test]
 fn a_closed_pipe_on_stdout_ends_the_program_quietly_not_with_a_panic() {
     use std::os::unix::process::ExitStatusExt;
     for args in [

@@ -67,4 +67,12 @@ mod tests {
             "{detail}"
         );
     }
+
+    #[test]
+    fn an_answer_taking_exactly_the_allowance_is_in_time() {
+        let allowance = Duration::from_millis(500);
+        let mut timing = AnswerTiming::default();
+        timing.answered(0, allowance, allowance);
+        assert!(timing.passed(), "{}", timing.detail(1));
+    }
 }

@@ -191,4 +191,17 @@ mod tests {
         });
         assert!(not_finite.is_err_and(|why| why.starts_with("period 7:")));
     }
+
+    #[test]
+    fn the_real_time_drive_is_a_third_of_lockstep_at_the_same_frequencies() {
+        assert_eq!(REALTIME_EXCITATION.amplitude_a, 0.1);
+        assert_eq!(
+            (REALTIME_EXCITATION.a_hz, REALTIME_EXCITATION.b_hz),
+            (EXCITATION.a_hz, EXCITATION.b_hz)
+        );
+        assert_eq!(
+            REALTIME_EXCITATION.to_string(),
+            "0.1 A sines at 40 Hz (coil A) and 80 Hz (coil B)"
+        );
+    }
 }
