@@ -9,8 +9,8 @@ use scanhil_protocol::ild::command::{
 };
 use scanhil_protocol::ild::{IldCommand, IldDecoder, IldReplyParser, IldValue, encode_cycle};
 use scanhil_protocol::message::{
-    AngleReading, CoilCommand, Distance, Fault, FaultKind, I24_MAX, Message, NodeId, NodeState,
-    Status, U18_MAX, U24_MAX,
+    AngleReading, Carried, CoilCommand, Distance, Fault, FaultKind, I24_MAX, Message, NodeId,
+    NodeState, Status, U18_MAX, U24_MAX,
 };
 use scanhil_protocol::slcan::bus_status::{BusError, BusState, StateReport, StatusFlags};
 use scanhil_protocol::slcan::{self, SlcanDecoder, SlcanMessage};
@@ -55,6 +55,36 @@ fn arb_distance() -> impl Strategy<Value = Distance> {
 
 fn arb_i24() -> std::ops::RangeInclusive<i32> {
     -I24_MAX - 1..=I24_MAX
+}
+
+/// Messages whose fields may not fit their signals: angles and currents beyond 24 bits,
+/// statuses beyond 24-bit counters.
+fn arb_unchecked_message() -> impl Strategy<Value = Message> {
+    prop_oneof![
+        arb_message(),
+        (any::<u16>(), any::<i32>(), any::<i32>()).prop_map(|(seq, a, b)| {
+            Message::AngleReading(AngleReading {
+                seq,
+                alpha_urad: a,
+                beta_urad: b,
+            })
+        }),
+        (any::<u16>(), any::<i32>(), any::<i32>()).prop_map(|(seq, a, b)| {
+            Message::CoilCommand(CoilCommand {
+                seq,
+                current_a_ua: a,
+                current_b_ua: b,
+            })
+        }),
+        (arb_node(), 0u8..4, any::<u32>(), any::<u32>()).prop_map(|(node, s, step, t)| {
+            Message::Status(Status {
+                node,
+                state: NodeState::from_code(s).unwrap(),
+                step,
+                node_time_us: t,
+            })
+        }),
+    ]
 }
 
 fn arb_message() -> impl Strategy<Value = Message> {
@@ -304,6 +334,27 @@ proptest! {
         prop_assert_eq!(Message::decode(&frame), Ok(message));
         let decoded = scanhil_protocol::message::decode_signals(&frame).unwrap();
         prop_assert_eq!(decoded.spec.id, message.id());
+    }
+
+    /// What a transport in one process hands over is what a link would: a message passes
+    /// its check exactly when it encodes, and the receiver reads the message its frame decodes
+    /// to.
+    #[test]
+    fn a_carried_message_reads_as_its_frame_decodes(message in arb_unchecked_message()) {
+        match (message.encode(), Carried::checked(message)) {
+            (Ok(frame), Ok(carried)) => {
+                prop_assert_eq!(carried.message(), Message::decode(&frame));
+                prop_assert_eq!(carried.frame(), Ok(frame));
+                prop_assert_eq!(Carried::Frame(frame).message(), Ok(message));
+            }
+            (Err(encoding), Err(checking)) => prop_assert_eq!(encoding, checking),
+            (encoded, checked) => prop_assert!(
+                false,
+                "encoding gave {:?}, the check {:?}",
+                encoded,
+                checked
+            ),
+        }
     }
 
     #[test]

@@ -20,9 +20,13 @@
 //!
 //! # Layout
 //! - [`spec`]: the signal table, bit packing and unpacking.
+//! - [`carried`]: a message on its way, as a frame or (in one process) as itself.
 //! - this module: ids, node ids, the typed messages and [`Message`].
 
+pub mod carried;
 pub mod spec;
+
+pub use carried::Carried;
 
 use crate::can::{CanFrame, CanId, FrameFormat};
 use crate::ild::IldValue;
@@ -528,28 +532,28 @@ impl Message {
     /// The raw field values in the spec's signal order.
     fn raw(&self) -> Fields {
         match self {
-            Message::Fault(f) => Fields::of(&[&[
+            Message::Fault(f) => Fields::from([
                 i64::from(f.node.code()),
                 i64::from(f.kind.code()),
                 i64::from(f.detail),
                 i64::from(f.step),
-            ]]),
-            Message::Sync { step } | Message::Step { step } => Fields::of(&[&[i64::from(*step)]]),
-            Message::CoilCommand(c) => Fields::of(&[&c.raw()]),
-            Message::AngleReading(a) => Fields::of(&[&a.raw()]),
-            Message::Distance(d) => Fields::of(&[&d.raw()]),
+            ]),
+            Message::Sync { step } | Message::Step { step } => Fields::from([i64::from(*step)]),
+            Message::CoilCommand(c) => Fields::from(c.raw()),
+            Message::AngleReading(a) => Fields::from(a.raw()),
+            Message::Distance(d) => Fields::from(d.raw()),
             Message::CommandStepFd { command, step } => {
                 Fields::of(&[&command.raw(), &[i64::from(*step)]])
             }
             Message::AnglesDistanceFd { angles, distance } => {
                 Fields::of(&[&angles.raw(), &distance.raw()])
             }
-            Message::Status(s) => Fields::of(&[&[
+            Message::Status(s) => Fields::from([
                 i64::from(s.node.code()),
                 i64::from(s.state.code()),
                 i64::from(s.step),
                 i64::from(s.node_time_us),
-            ]]),
+            ]),
         }
     }
 
@@ -561,17 +565,7 @@ impl Message {
     pub fn encode(&self) -> Result<CanFrame, MessageError> {
         let spec = self.spec();
         let raw = self.raw();
-        for (signal, &value) in spec.signals.iter().zip(raw.iter()) {
-            if value < signal.raw_min() || value > signal.raw_max() {
-                return Err(MessageError::OutOfRange {
-                    message: spec.name,
-                    signal: signal.name,
-                    value,
-                    min: signal.raw_min(),
-                    max: signal.raw_max(),
-                });
-            }
-        }
+        check_ranges(spec, &raw)?;
         let mut buffer = [0u8; crate::can::FD_MAX_LEN];
         let payload = &mut buffer[..usize::from(spec.len)];
         pack(spec.signals, &raw, payload);
@@ -588,6 +582,16 @@ impl Message {
             message: spec.name,
             what: e.to_string(),
         })
+    }
+
+    /// Checks that every field fits its signal, as [`Self::encode`] does, without building
+    /// the frame: a message that passes is one the frame carries unchanged
+    /// (`decode(encode(m)) == m`), so a transport inside one process can hand it over as it is.
+    ///
+    /// # Errors
+    /// [`MessageError::OutOfRange`], as [`Self::encode`].
+    pub fn check(&self) -> Result<(), MessageError> {
+        check_ranges(self.spec(), &self.raw())
     }
 
     /// The message a frame carries.
@@ -642,6 +646,22 @@ impl Message {
             }),
         })
     }
+}
+
+/// Every raw field of `spec`'s message within its signal's range.
+fn check_ranges(spec: &MessageSpec, raw: &Fields) -> Result<(), MessageError> {
+    for (signal, &value) in spec.signals.iter().zip(raw.iter()) {
+        if value < signal.raw_min() || value > signal.raw_max() {
+            return Err(MessageError::OutOfRange {
+                message: spec.name,
+                signal: signal.name,
+                value,
+                min: signal.raw_min(),
+                max: signal.raw_max(),
+            });
+        }
+    }
+    Ok(())
 }
 
 fn undefined(spec: &MessageSpec, signal: &SignalSpec, value: i64) -> MessageError {
@@ -712,6 +732,19 @@ impl Fields {
             *slot = value;
             self.len += 1;
         }
+    }
+}
+
+impl<const N: usize> From<[i64; N]> for Fields {
+    /// The values of one message part (past [`MAX_FIELDS`] values are dropped, as by
+    /// [`Fields::push`]).
+    fn from(values: [i64; N]) -> Fields {
+        let mut fields = Fields::default();
+        for (slot, value) in fields.values.iter_mut().zip(values) {
+            *slot = value;
+        }
+        fields.len = N.min(MAX_FIELDS);
+        fields
     }
 }
 

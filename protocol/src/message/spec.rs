@@ -482,8 +482,21 @@ pub const MESSAGES: &[MessageSpec] = &[
 /// The spec of message `id`, `None` for an id not in the set.
 #[must_use]
 pub fn message_spec(id: u16) -> Option<&'static MessageSpec> {
-    MESSAGES.iter().find(|m| m.id == id)
+    let index = *SPEC_INDEX_BY_ID.get(usize::from(id))?;
+    MESSAGES.get(usize::from(index))
 }
+
+/// Each 11-bit id's index into [`MESSAGES`] (`u8::MAX`: no message has it), built from the
+/// table when the crate compiles: every frame's lookup is one load, not a search.
+const SPEC_INDEX_BY_ID: [u8; 0x800] = {
+    let mut index = [u8::MAX; 0x800];
+    let mut i = 0;
+    while i < MESSAGES.len() {
+        index[MESSAGES[i].id as usize] = i as u8;
+        i += 1;
+    }
+    index
+};
 
 /// Writes the raw values (one per signal, in the spec's order) into `payload`.
 ///
@@ -553,6 +566,19 @@ fn byte_spans(spec: &SignalSpec) -> impl Iterator<Item = ByteSpan> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_id_index_finds_what_a_search_of_the_table_finds() {
+        assert!(MESSAGES.len() < usize::from(u8::MAX), "indices fit a u8");
+        for id in 0..=u16::MAX {
+            let searched = MESSAGES.iter().find(|m| m.id == id);
+            assert_eq!(
+                message_spec(id).map(|m| m.id),
+                searched.map(|m| m.id),
+                "{id:#x}"
+            );
+        }
+    }
 
     #[test]
     fn signals_fit_their_payload_and_do_not_overlap() {
