@@ -21,7 +21,7 @@ use peak_alloc::PeakAlloc;
 
 use imaging_support::{lissajous, stud_scene};
 use scanhil_controller::imaging::feature::FeatureParams;
-use scanhil_controller::imaging::pipeline::{ImagingOptions, image_points, write_outputs};
+use scanhil_controller::imaging::pipeline::{Figures, ImagingOptions, image_points, write_outputs};
 use scanhil_controller::imaging::ply::PlyEncoding;
 use scanhil_controller::imaging::progressive::{ScanFrame, simulate_samples};
 use scanhil_controller::imaging::reconstruct::{Reconstruction, ScanPoint, reconstruct};
@@ -67,6 +67,7 @@ fn measure_imaging(
             dir.path(),
             PlyEncoding::BinaryLittleEndian,
             &BTreeMap::new(),
+            Figures::Drawn,
         )
     });
     anyhow::ensure!(

@@ -114,7 +114,8 @@ impl InProcessOutcome {
 }
 
 /// Runs `scenario` (lockstep) in this process. With `out_dir`, records `fsm.log` and
-/// `sensor.ild` there and writes the output folder as `scanhil scan --out` does.
+/// `sensor.ild` there (unless the scenario's `outputs.recordings` leaves them out) and writes
+/// the output folder as `scanhil scan --out` does.
 ///
 /// # Errors
 /// A scenario this loop cannot run (real time, a sensor on the mirror's CAN link, no scene),
@@ -215,7 +216,8 @@ pub fn run_probed(
         ),
         _ => None,
     };
-    let mut transport = Transport::new(out_dir, sensor_settings, measuring_rate_hz)?;
+    let record_dir = out_dir.filter(|_| scenario.outputs.recordings);
+    let mut transport = Transport::new(record_dir, sensor_settings, measuring_rate_hz)?;
     transport.faults = LinkFaults::new(&scenario.faults, scenario.seed, period_s);
     // Injected frame faults are survived as over a link: a reading that does not come gets
     // its Step sent again, up to the watchdog's periods.
@@ -404,13 +406,14 @@ impl MemorySensor {
 }
 
 impl Transport {
+    /// The links, recorded into `record_dir` when given.
     fn new(
-        out_dir: Option<&Path>,
+        record_dir: Option<&Path>,
         sensor_settings: Option<IldSettings>,
         measuring_rate_hz: f64,
     ) -> anyhow::Result<Transport> {
         let clock = VirtualClock::default();
-        let capture = out_dir
+        let capture = record_dir
             .map(|dir| {
                 let path = dir.join(output::FSM_LOG);
                 let file =
@@ -423,7 +426,7 @@ impl Transport {
             })
             .transpose()?;
         let sensor = if let Some(settings) = sensor_settings {
-            let capture = out_dir
+            let capture = record_dir
                 .map(|dir| {
                     let path = dir.join(output::SENSOR_CAPTURE);
                     File::create(&path)

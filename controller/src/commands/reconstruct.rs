@@ -8,7 +8,7 @@ use scanhil_controller::imaging::feature::{FeatureParams, FeatureSelection, Regi
 use scanhil_controller::imaging::fill::FillMethod;
 use scanhil_controller::imaging::grid::{GridError, GridMethod};
 use scanhil_controller::imaging::pipeline::{
-    ImagingError, ImagingOptions, image_samples, write_outputs,
+    Figures, ImagingError, ImagingOptions, image_samples, write_outputs,
 };
 use scanhil_controller::imaging::ply::PlyEncoding;
 use scanhil_controller::imaging::progressive::ScanFrame;
@@ -275,6 +275,7 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         &args.out_dir,
         encoding,
         &recording.missing_by_reason,
+        Figures::Drawn,
     )?;
     let json = args.out_dir.join("report.json");
     let report_json = serde_json::json!({

@@ -78,6 +78,14 @@ pub struct Args {
     /// e.g. `can0`, so `canplayer -I fsm.log` replays it there.
     #[arg(long, value_name = "IFACE")]
     record_iface: Option<String>,
+    /// Leave out the recordings (`fsm.log`, `sensor.ild`): for a run that only wants its
+    /// report. The report lists them under `outputs.left_out`.
+    #[arg(long)]
+    no_recordings: bool,
+    /// Leave out the figures (`tracking.svg`, `height_map.png`, `progressive.svg`,
+    /// `snapshots.png`, `profiles.svg`); the CSV files, the point cloud and the report stay.
+    #[arg(long)]
+    no_figures: bool,
     /// Serve a recorded session (a scan's output folder or a bench capture: `fsm.log`,
     /// `sensor.ild`) as the devices, in lockstep, instead of emulating the scene; the report's
     /// `replay` section names the first period whose coil command differs from the recording's.
@@ -125,6 +133,8 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
         emulator_ready_s: args.emulator_ready_s,
         record_epoch: args.record_epoch,
         record_iface: args.record_iface,
+        no_recordings: args.no_recordings,
+        no_figures: args.no_figures,
         replay: args.replay,
         replay_must_match: args.replay_must_match,
     };

@@ -380,9 +380,20 @@ fn quantity_caption(map_quantity: &str) -> &'static str {
     }
 }
 
+/// Whether [`write_outputs`] draws the pictures (`height_map.png`, `progressive.svg`,
+/// `snapshots.png`, `profiles.svg`); the report's figures are computed either way.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Figures {
+    /// Drawn.
+    Drawn,
+    /// Left out (the report's `map_range_mm`, the picture's colour range, is then `null`).
+    LeftOut,
+}
+
 /// Writes into `dir` (created if needed) `points.ply`, `height_map.png`, `height_map.csv`,
-/// `progressive.svg` (when scored), `snapshots.png` and `profiles.svg`/`profiles.csv`, and
-/// returns the report for the caller's `report.json`; `missing_by_reason` is copied into it.
+/// `progressive.svg` (when scored), `snapshots.png` and `profiles.svg`/`profiles.csv` (the
+/// pictures only when `figures` says so), and returns the report for the caller's
+/// `report.json`; `missing_by_reason` is copied into it.
 /// The snapshots count from [`Imaging::frame`]; the profiles cross at the feature's centre
 /// (the map's centre without a feature) and carry the true surface when [`Imaging::truth`]
 /// is known. A file that cannot be written does not stop the others: it is listed in
@@ -395,7 +406,9 @@ pub fn write_outputs(
     dir: &Path,
     encoding: PlyEncoding,
     missing_by_reason: &BTreeMap<String, usize>,
+    figures: Figures,
 ) -> Result<ImagingReport, ImagingError> {
+    let drawn = figures == Figures::Drawn;
     std::fs::create_dir_all(dir).map_err(|source| ImagingError::Io {
         path: dir.to_owned(),
         source,
@@ -415,26 +428,30 @@ pub fn write_outputs(
         "z_mm"
     };
     let caption = quantity_caption(map_quantity);
-    let map_range_mm = whole(dir, HEIGHT_MAP_PNG, |path| {
-        imaging.map.draw_png(
-            path,
-            &format!(
-                "height map ({model} model, {})",
-                match imaging.options.fill {
-                    FillMethod::None => "not filled",
-                    FillMethod::Nearest => "filled: nearest",
-                    FillMethod::Diffusion => "filled: diffusion",
-                }
-            ),
-            caption,
-        )
+    let map_range_mm = drawn.then(|| {
+        whole(dir, HEIGHT_MAP_PNG, |path| {
+            imaging.map.draw_png(
+                path,
+                &format!(
+                    "height map ({model} model, {})",
+                    match imaging.options.fill {
+                        FillMethod::None => "not filled",
+                        FillMethod::Nearest => "filled: nearest",
+                        FillMethod::Diffusion => "filled: diffusion",
+                    }
+                ),
+                caption,
+            )
+        })
     });
-    let map_range_mm = written.attempt(HEIGHT_MAP_PNG, map_range_mm).flatten();
+    let map_range_mm = map_range_mm
+        .and_then(|drawn| written.attempt(HEIGHT_MAP_PNG, drawn))
+        .flatten();
     written.attempt(
         HEIGHT_MAP_CSV,
         write_csv_file(dir, HEIGHT_MAP_CSV, |out| imaging.map.write_csv(out)),
     );
-    if !imaging.progressive.is_empty() {
+    if drawn && !imaging.progressive.is_empty() {
         let mut comparison = ProgressiveComparison::new(
             imaging.options.model,
             None,
@@ -465,18 +482,20 @@ pub fn write_outputs(
         frame,
         &SNAPSHOT_FRACTIONS,
     );
-    let drawn = whole(dir, SNAPSHOTS_PNG, |path| {
-        draw_snapshots(
-            path,
-            &format!(
-                "the map after parts of the {:.3} s frame (no fill)",
-                frame.length_s
-            ),
-            caption,
-            &[(String::new(), snapshots.clone())],
-        )
-    });
-    written.attempt(SNAPSHOTS_PNG, drawn);
+    if drawn {
+        let picture = whole(dir, SNAPSHOTS_PNG, |path| {
+            draw_snapshots(
+                path,
+                &format!(
+                    "the map after parts of the {:.3} s frame (no fill)",
+                    frame.length_s
+                ),
+                caption,
+                &[(String::new(), snapshots.clone())],
+            )
+        });
+        written.attempt(SNAPSHOTS_PNG, picture);
+    }
     let spec = imaging.map.spec;
     let profile_centre = match &imaging.feature {
         Some(Ok(f)) => ProfileCentre {
@@ -498,10 +517,12 @@ pub fn write_outputs(
             Some(plane.map_or(z, |plane| plane.height_mm([x, y, z])))
         },
     );
-    let drawn = whole(dir, PROFILES_SVG, |path| {
-        draw_profiles(path, caption, &[("this scan".to_string(), &profiles)])
-    });
-    written.attempt(PROFILES_SVG, drawn);
+    if drawn {
+        let picture = whole(dir, PROFILES_SVG, |path| {
+            draw_profiles(path, caption, &[("this scan".to_string(), &profiles)])
+        });
+        written.attempt(PROFILES_SVG, picture);
+    }
     written.attempt(
         PROFILES_CSV,
         write_csv_file(dir, PROFILES_CSV, |out| profiles.write_csv(out)),

@@ -184,6 +184,20 @@ impl OutputBytes {
         }
     }
 
+    /// The same outputs, the recordings left out unless `kept` (`outputs.recordings`).
+    #[must_use]
+    pub fn with_recordings(self, kept: bool) -> Self {
+        if kept {
+            self
+        } else {
+            OutputBytes {
+                fsm_log: 0.0,
+                sensor_ild: 0.0,
+                ..self
+            }
+        }
+    }
+
     /// All of it.
     #[must_use]
     pub fn total(&self) -> f64 {
@@ -334,6 +348,12 @@ mod tests {
         let fine_map = OutputBytes::of_run(1000, 1000.0, 1, 4e6);
         assert_eq!(fine_map.check(1e6).unwrap_err().field, "imaging.pitch_mm");
         let no_sensor = OutputBytes::of_run(1000, 0.0, 0, 4e6);
+        assert_eq!(hour.with_recordings(true), hour);
+        assert_eq!(
+            hour.with_recordings(false).total(),
+            hour.imaging,
+            "no recording counted"
+        );
         assert_eq!(no_sensor.imaging, 0.0);
         assert_eq!(no_sensor.total(), 1000.0 * FSM_LOG_BYTES_PER_PERIOD);
     }

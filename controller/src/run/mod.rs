@@ -144,6 +144,10 @@ pub struct ScanOptions {
     pub record_epoch: bool,
     /// Overrides the scenario's recording interface name.
     pub record_iface: Option<String>,
+    /// Leaves out the recordings (only ever turns them off).
+    pub no_recordings: bool,
+    /// Leaves out the figures (only ever turns them off).
+    pub no_figures: bool,
     /// Serve this recorded session as the devices (`scanhil-emulator replay`) instead of
     /// emulating the scene.
     pub replay: Option<PathBuf>,
@@ -199,6 +203,8 @@ impl ScanOptions {
         if let Some(iface) = &self.record_iface {
             scenario.recording.iface.clone_from(iface);
         }
+        scenario.outputs.recordings &= !self.no_recordings;
+        scenario.outputs.figures &= !self.no_figures;
         scenario
             .check_values()
             .map_err(|invalid| match self.flag_of(&invalid.field) {
@@ -342,6 +348,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
     let sensor_cycles = sensor_rate_hz.map_or(0.0, |rate_hz| rate_hz * periods as f64 * period_s);
     let values_per_cycle = rig.sensor.map_or(0, |sensor| sensor.output().values.len());
     budget::OutputBytes::of_run(periods, sensor_cycles, values_per_cycle, grid_cells)
+        .with_recordings(scenario.outputs.recordings)
         .check(machine::free_disk_bytes(&options.out_dir))
         .map_err(|invalid| {
             scenario::ScenarioError::from(match options.flag_of(&invalid.field) {
@@ -374,7 +381,7 @@ pub fn run_scan(scenario: &Scenario, options: &ScanOptions) -> anyhow::Result<Sc
             timing: scenario.timing,
             period_s,
             duration_s: periods as f64 * period_s,
-            record_dir: Some(out_dir.clone()),
+            record_dir: scenario.outputs.recordings.then(|| out_dir.clone()),
             recording: scenario.recording.clone(),
             bus_bitrate: rig.bus.map(|bus| bus.bitrate_bps.round() as u32),
             sensor_expectation: rig.sensor,

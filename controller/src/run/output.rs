@@ -31,15 +31,15 @@ use super::output_failures::OutputFailures;
 use super::pairing::{ArrivalBound, FramePairing, SensorClock};
 use super::plan::PlanSummary;
 use super::sample_log::CountedSample;
-use super::scenario::Scenario;
+use super::scenario::{OutputsConfig, Scenario};
 use super::sensor_link::SensorCounters;
 use super::tracking::{PlotPoint, TrackingSummary};
 use super::verdict::{PlantDeclares, RunFigures, SensorFigures, Status, judge};
 use super::{ScanEnd, ScanResult};
 use crate::imaging::grid::GridMethod;
 use crate::imaging::pipeline::{
-    IMAGING_OUTPUTS, ImagingOptions, ImagingReport, image_points, reconstruct_samples,
-    write_outputs,
+    Figures, HEIGHT_MAP_PNG, IMAGING_OUTPUTS, ImagingOptions, ImagingReport, PROFILES_SVG,
+    PROGRESSIVE_SVG, SNAPSHOTS_PNG, image_points, reconstruct_samples, write_outputs,
 };
 use crate::imaging::ply::PlyEncoding;
 use crate::imaging::progressive::ScanFrame;
@@ -55,6 +55,30 @@ pub const SENSOR_CAPTURE: &str = "sensor.ild";
 pub const REPORT: &str = "report.json";
 /// The tracking plot.
 pub const TRACKING_SVG: &str = "tracking.svg";
+
+/// The recordings [`OutputsConfig::recordings`] switches.
+pub const RECORDING_FILES: [&str; 2] = [FSM_LOG, SENSOR_CAPTURE];
+
+/// The figures [`OutputsConfig::figures`] switches.
+pub const FIGURE_FILES: [&str; 5] = [
+    TRACKING_SVG,
+    HEIGHT_MAP_PNG,
+    PROGRESSIVE_SVG,
+    SNAPSHOTS_PNG,
+    PROFILES_SVG,
+];
+
+/// The files `outputs` leaves out, recordings first.
+#[must_use]
+pub fn left_out(outputs: OutputsConfig) -> Vec<&'static str> {
+    let recordings = (!outputs.recordings).then_some(RECORDING_FILES);
+    let figures = (!outputs.figures).then_some(FIGURE_FILES);
+    recordings
+        .into_iter()
+        .flatten()
+        .chain(figures.into_iter().flatten())
+        .collect()
+}
 
 /// Everything the loop produced, before imaging.
 #[derive(Debug)]
@@ -159,10 +183,12 @@ pub fn write(
         &options,
     );
     let tracking = record.tracking.summary();
-    failed.attempt(
-        TRACKING_SVG,
-        write_tracking_plot(record, &tracking, plan, out_dir),
-    );
+    if scenario.outputs.figures {
+        failed.attempt(
+            TRACKING_SVG,
+            write_tracking_plot(record, &tracking, plan, out_dir),
+        );
+    }
     let end = ScanEnd::of(record);
     // No prediction is compared where none applies: a scene without dynamics.
     let predicted = match run.plant.dynamics {
@@ -282,7 +308,7 @@ pub fn write(
             "faults": scenario.faults.is_active().then(|| fault_report(scenario, run, &sensor_counters, &sensor_errors)),
             "emulator": emulator,
             "replay": replay.as_ref().map(|(section, _)| section),
-            "outputs": { "failed": &failed },
+            "outputs": { "failed": &failed, "left_out": left_out(scenario.outputs) },
         });
         (report, verdict)
     };
@@ -292,7 +318,11 @@ pub fn write(
     if pairing.with_distance > 0 {
         let unfinished = "the run ended while its points were imaged";
         let mut not_written = failed.clone();
-        for file in IMAGING_OUTPUTS {
+        let left_out = left_out(scenario.outputs);
+        for file in IMAGING_OUTPUTS
+            .iter()
+            .filter(|file| !left_out.contains(file))
+        {
             not_written.add(file, unfinished.to_owned());
         }
         let (report, _) = report_with(None, Some(unfinished.to_owned()), &not_written);
@@ -398,6 +428,11 @@ fn image_and_write(
         out_dir,
         PlyEncoding::BinaryLittleEndian,
         missing_by_reason,
+        if scenario.outputs.figures {
+            Figures::Drawn
+        } else {
+            Figures::LeftOut
+        },
     )
     .context("writing the imaging outputs")
 }

@@ -67,6 +67,8 @@ pub struct Scenario {
     pub faults: FaultsConfig,
     /// How the mirror link's recording is stamped and named.
     pub recording: RecordingConfig,
+    /// Which output files a run writes (every one by default).
+    pub outputs: OutputsConfig,
 }
 
 /// How the loop is clocked.
@@ -311,6 +313,29 @@ impl Default for RecordingConfig {
     }
 }
 
+/// The `outputs` section: which of the scan's files a run writes. A run that only wants its
+/// report (a study's table) leaves out the recordings and the figures and saves their time;
+/// `report.json` lists what was left out. By default every output is written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct OutputsConfig {
+    /// `fsm.log` and `sensor.ild`, the links' recordings (`--no-recordings` leaves them out).
+    pub recordings: bool,
+    /// The pictures: `tracking.svg`, `height_map.png`, `progressive.svg`, `snapshots.png`,
+    /// `profiles.svg` (`--no-figures` leaves them out). The CSV files and the point cloud
+    /// are written either way.
+    pub figures: bool,
+}
+
+impl Default for OutputsConfig {
+    fn default() -> OutputsConfig {
+        OutputsConfig {
+            recordings: true,
+            figures: true,
+        }
+    }
+}
+
 /// The interface name recordings carry by default, the same on every transport so that
 /// recordings compare.
 pub const DEFAULT_RECORDING_IFACE: &str = "fsm";
@@ -451,6 +476,8 @@ struct ScenarioFile {
     faults: FaultsConfig,
     #[serde(default)]
     recording: RecordingConfig,
+    #[serde(default)]
+    outputs: OutputsConfig,
 }
 
 impl Scenario {
@@ -491,6 +518,7 @@ impl Scenario {
             lead_in: file.lead_in,
             faults: file.faults,
             recording: file.recording,
+            outputs: file.outputs,
         };
         scenario.check()?;
         Ok(scenario)
@@ -672,6 +700,36 @@ mod tests {
                 "duplo-lissajous-dual-tone.json: field `recording.iface`: interface name \
                  `can 0` contains ' ' at byte 3 (no `/`, `:` or white space)"
             ),
+            "{error}"
+        );
+    }
+
+    #[test]
+    fn outputs_are_all_written_unless_the_scenario_leaves_some_out() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../fixtures/scenarios/duplo-lissajous-dual-tone.json");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let with = |outputs: &str| {
+            let edited = text.replacen('{', &format!("{{ \"outputs\": {outputs},"), 1);
+            Scenario::from_json_str(&edited, &path)
+        };
+        assert_eq!(
+            Scenario::from_json_str(&text, &path).unwrap().outputs,
+            OutputsConfig {
+                recordings: true,
+                figures: true
+            }
+        );
+        assert_eq!(
+            with(r#"{ "figures": false }"#).unwrap().outputs,
+            OutputsConfig {
+                recordings: true,
+                figures: false
+            }
+        );
+        let error = with(r#"{ "plots": false }"#).unwrap_err().to_string();
+        assert!(
+            error.contains("duplo-lissajous-dual-tone.json") && error.contains("plots"),
             "{error}"
         );
     }

@@ -1,7 +1,9 @@
 //! `scanhil-study`: runs a study (one scenario, many variants) and tabulates it.
 //!
-//! - `scanhil-study run STUDY --out DIR [--jobs N]`: writes the variants, runs them in this
-//!   process on N threads (default: one per core), writes `DIR/study.csv` and `study.json`.
+//! - `scanhil-study run STUDY --out DIR [--jobs N] [--no-recordings] [--no-figures]`: writes
+//!   the variants, runs them in this process on N threads (default: one per core), writes
+//!   `DIR/study.csv` and `study.json`. The two flags leave out every variant's recordings and
+//!   pictures (the study file's `outputs`).
 //! - `scanhil-study plan STUDY --out DIR`: writes the variants only and prints their scenario
 //!   files, one per line, for a batch system to run with `scanhil scan FILE --out
 //!   <its folder>/result`.
@@ -40,6 +42,8 @@ enum Command {
         /// Worker threads (default: one per core).
         #[arg(long, allow_negative_numbers = true)]
         jobs: Option<usize>,
+        #[command(flatten)]
+        leave_out: LeaveOut,
     },
     /// Write the variants' files only; print their scenario files.
     Plan {
@@ -48,6 +52,8 @@ enum Command {
         /// The study's folder.
         #[arg(long)]
         out: PathBuf,
+        #[command(flatten)]
+        leave_out: LeaveOut,
     },
     /// Tabulate the result folders of variants run elsewhere.
     Collect {
@@ -57,6 +63,28 @@ enum Command {
         #[arg(long)]
         out: PathBuf,
     },
+}
+
+/// What every variant leaves out, on top of the study file's `outputs`.
+#[derive(Debug, clap::Args)]
+struct LeaveOut {
+    /// Leave out every variant's recordings (`fsm.log`, `sensor.ild`).
+    #[arg(long)]
+    no_recordings: bool,
+    /// Leave out every variant's pictures (SVG, PNG); the table is the same.
+    #[arg(long)]
+    no_figures: bool,
+}
+
+impl LeaveOut {
+    /// The study at `path`, leaving out what these flags say.
+    fn load(&self, path: &std::path::Path) -> anyhow::Result<Study> {
+        let mut study = Study::load(path)?;
+        if self.no_recordings || self.no_figures {
+            study.leave_out(self.no_recordings, self.no_figures);
+        }
+        Ok(study)
+    }
 }
 
 fn main() -> ExitCode {
@@ -75,8 +103,13 @@ fn main() -> ExitCode {
 
 fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
-        Command::Run { study, out, jobs } => {
-            let study = Study::load(&study)?;
+        Command::Run {
+            study,
+            out,
+            jobs,
+            leave_out,
+        } => {
+            let study = leave_out.load(&study)?;
             let jobs = jobs.unwrap_or_else(default_jobs);
             if jobs == 0 {
                 anyhow::bail!("--jobs 0: at least one worker is needed");
@@ -97,8 +130,12 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             )?;
             Ok(exit_code(&rows))
         }
-        Command::Plan { study, out } => {
-            let study = Study::load(&study)?;
+        Command::Plan {
+            study,
+            out,
+            leave_out,
+        } => {
+            let study = leave_out.load(&study)?;
             for scenario in study.write_variants(&out)? {
                 scanhil_protocol::outln!("{}", scenario.display())?;
             }

@@ -4,6 +4,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, bail};
+use scanhil_controller::run::scenario::OutputsConfig;
 use scanhil_scene::json_file;
 use serde::Deserialize;
 use serde_json::Value;
@@ -27,6 +28,10 @@ pub struct Study {
     pub description: String,
     /// The base scenario file.
     pub scenario: PathBuf,
+    /// What every variant leaves out of its outputs (`None`: as the base scenario says): a
+    /// study that only wants its table leaves out the recordings and the figures. A `false`
+    /// here leaves out; a `true` keeps what the base scenario writes.
+    pub outputs: Option<OutputsConfig>,
     /// One map of `key -> value` per variant, in order.
     pub variants: Vec<BTreeMap<String, Value>>,
 }
@@ -42,6 +47,8 @@ struct StudyFile {
     grid: Option<BTreeMap<String, Vec<Value>>>,
     #[serde(default)]
     list: Option<Vec<BTreeMap<String, Value>>>,
+    #[serde(default)]
+    outputs: Option<OutputsConfig>,
 }
 
 impl Study {
@@ -79,8 +86,19 @@ impl Study {
             name: file.name,
             description: file.description,
             scenario: base.join(file.scenario),
+            outputs: file.outputs,
             variants,
         })
+    }
+
+    /// Leaves out every variant's recordings and figures as well, where `recordings` or
+    /// `figures` says so (`scanhil-study --no-recordings`, `--no-figures`).
+    pub fn leave_out(&mut self, recordings: bool, figures: bool) {
+        let outputs = self.outputs.unwrap_or_default();
+        self.outputs = Some(OutputsConfig {
+            recordings: outputs.recordings && !recordings,
+            figures: outputs.figures && !figures,
+        });
     }
 
     /// The keys any variant sets, in order: the table's parameter columns.
@@ -112,7 +130,7 @@ impl Study {
                 let dir = variant_dir(out_dir, i);
                 std::fs::create_dir_all(&dir)
                     .with_context(|| format!("creating {}", dir.display()))?;
-                base.write_variant(values, study_dir, &dir)
+                base.write_variant(values, self.outputs, study_dir, &dir)
                     .with_context(|| format!("variant {} ({})", i + 1, describe(values)))
             })
             .collect()
@@ -194,6 +212,7 @@ impl BaseDocuments {
     fn write_variant(
         &self,
         values: &BTreeMap<String, Value>,
+        outputs: Option<OutputsConfig>,
         study_dir: &Path,
         dir: &Path,
     ) -> anyhow::Result<PathBuf> {
@@ -202,6 +221,18 @@ impl BaseDocuments {
             if let Some(Value::String(relative)) = scenario.get(field) {
                 let absolute = absolute(&self.scenario_dir.join(relative));
                 scenario[field] = Value::String(absolute.display().to_string());
+            }
+        }
+        // The study's outputs leave out (never turn on) what every variant writes; the
+        // variant's own fields come after.
+        if let Some(outputs) = outputs {
+            for (field, kept) in [
+                ("outputs.recordings", outputs.recordings),
+                ("outputs.figures", outputs.figures),
+            ] {
+                if !kept {
+                    set(&mut scenario, field, Value::Bool(false))?;
+                }
             }
         }
         // Scenario fields first: a variant may point the scenario at another scene, then
