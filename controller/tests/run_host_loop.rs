@@ -82,10 +82,13 @@ fn decoded_stop(action: HostAction) -> Vec<(Message, f64)> {
     decode_all(&frames)
 }
 
-fn decode_all(frames: &[scanhil_controller::run::host_loop::StampedFrame]) -> Vec<(Message, f64)> {
+/// The messages as the node reads them: through the bytes a link carries.
+fn decode_all(
+    frames: &[scanhil_controller::run::host_loop::StampedMessage],
+) -> Vec<(Message, f64)> {
     frames
         .iter()
-        .map(|f| (Message::decode(&f.frame).unwrap(), f.t_s))
+        .map(|f| (Message::decode(&f.frame().unwrap()).unwrap(), f.t_s))
         .collect()
 }
 

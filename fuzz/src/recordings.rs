@@ -85,7 +85,7 @@ fn serve_every_period(recording: Recording) {
         let step = Message::Step { step: k as u32 }.encode().expect("a Step");
         match node.on_frame(&step) {
             Ok(NodeReply::Send(sends)) => assert!(
-                sends.contains(&NodeSend::Frame(period.frames[period.reading])),
+                sends.contains(&NodeSend::Frame(period.frames[period.reading].into())),
                 "period {k} is answered with its reading"
             ),
             other => panic!("period {k}: {other:?}"),

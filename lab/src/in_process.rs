@@ -1,7 +1,11 @@
-//! A lockstep scenario run in one process. The host's [`HostLoop`] sends its frames; the
+//! A lockstep scenario run in one process. The host's [`HostLoop`] sends its messages; the
 //! in-memory transport records each in the candump capture and hands it to the mirror node's
 //! [`LockstepNode`] at once, which queues its answers for the host in the order the serve loop
-//! would write them to the pty. The sensor's samples go out as the ILD stream's bytes
+//! would write them to the pty. Messages go across as they are ([`Carried::Message`]): a frame
+//! is encoded only for the capture (or for injected frame faults, which act on bytes), and
+//! never decoded again; a message is checked as encoding would check it, and a property test
+//! in `scanhil-protocol` holds that decoding its frame gives it back, so the run is the one a
+//! link would carry (`tests/bit_for_bit.rs` compares it with the pty run byte for byte). The sensor's samples go out as the ILD stream's bytes
 //! (recorded as `sensor.ild`) and are decoded by the host's [`IldSampleDecoder`].
 //!
 //! The recording matches a pty run frame for frame: the host records a received frame when it
@@ -44,6 +48,7 @@ use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::ild::MeasuringRate;
 use scanhil_protocol::ild::stream::encode_cycle;
 use scanhil_protocol::link::{CanCapture, CaptureClock, VirtualClock};
+use scanhil_protocol::message::Carried;
 use scanhil_protocol::plant_units::SensingPair;
 
 /// The in-memory link's name (in the host's errors).
@@ -250,24 +255,24 @@ pub fn run_probed(
         match host.next_action() {
             HostAction::Done => break,
             HostAction::Send(frames) => {
-                for frame in &frames {
-                    transport.host_sends(&frame.frame, frame.t_s, &mut lockstep_node)?;
+                for sent in &frames {
+                    transport.host_sends(sent.carried, sent.t_s, &mut lockstep_node)?;
                 }
             }
             HostAction::SendStop(frames) => {
-                for frame in &frames {
-                    transport.host_sends_stop(&frame.frame, frame.t_s, &mut lockstep_node)?;
+                for sent in &frames {
+                    transport.host_sends_stop(sent.carried, sent.t_s, &mut lockstep_node)?;
                 }
             }
             HostAction::AwaitReading { period, t_s } => match transport.host_receives(t_s)? {
                 Some(frame) => {
-                    if let Heard::Reading(k) = host.on_frame(&frame, transport.arrival) {
+                    if let Heard::Reading(k) = host.on_frame(frame, transport.arrival) {
                         probe(k, host.latest_reading());
                     }
                 }
                 None => match host.on_silence() {
                     Some(step) => {
-                        transport.host_sends(&step.frame, step.t_s, &mut lockstep_node)?
+                        transport.host_sends(step.carried, step.t_s, &mut lockstep_node)?
                     }
                     None => host.on_error(LoopError::LinkTimeout {
                         link: LINK_NAME.to_owned(),
@@ -279,7 +284,7 @@ pub fn run_probed(
             },
             HostAction::AwaitNodeReady { t_s } => match transport.host_receives(t_s)? {
                 Some(frame) => {
-                    host.on_frame(&frame, transport.arrival);
+                    host.on_frame(frame, transport.arrival);
                 }
                 None => host.on_error(LoopError::LinkTimeout {
                     link: LINK_NAME.to_owned(),
@@ -367,7 +372,7 @@ pub fn run_probed(
 /// The in-memory links between the host and the node, with their recordings.
 struct Transport {
     /// The node's frames, in the order it sent them, until the host takes them.
-    to_host: std::collections::VecDeque<CanFrame>,
+    to_host: std::collections::VecDeque<Carried>,
     /// The node answered the end of the run: it takes no more frames.
     node_finished: bool,
     clock: VirtualClock,
@@ -461,18 +466,18 @@ impl Transport {
     /// frame that reaches the node is recorded and handled by it.
     fn host_sends(
         &mut self,
-        frame: &CanFrame,
+        sent: Carried,
         t_s: f64,
         node: &mut LockstepNode<'_>,
     ) -> anyhow::Result<()> {
         self.wire.host_sent += 1;
         match &mut self.faults {
-            None => self.node_receives(frame, t_s, node, true),
+            None => self.node_receives(sent, t_s, node, true),
             Some(faults) => {
-                let passed: Vec<CanFrame> = faults.outgoing(frame, t_s).collect();
+                let passed: Vec<CanFrame> = faults.outgoing(&sent.frame()?, t_s).collect();
                 passed
-                    .iter()
-                    .try_for_each(|frame| self.node_receives(frame, t_s, node, true))
+                    .into_iter()
+                    .try_for_each(|frame| self.node_receives(frame.into(), t_s, node, true))
             }
         }
     }
@@ -481,7 +486,7 @@ impl Transport {
     /// straight to the node (counted apart, in [`WireCounts::stop_frames`]).
     fn host_sends_stop(
         &mut self,
-        frame: &CanFrame,
+        frame: Carried,
         t_s: f64,
         node: &mut LockstepNode<'_>,
     ) -> anyhow::Result<()> {
@@ -494,12 +499,12 @@ impl Transport {
     /// frame that came `through_faults` is counted in [`WireCounts::node_received`].
     fn node_receives(
         &mut self,
-        frame: &CanFrame,
+        frame: Carried,
         t_s: f64,
         node: &mut LockstepNode<'_>,
         through_faults: bool,
     ) -> anyhow::Result<()> {
-        self.record(frame, t_s)?;
+        self.record(&frame, t_s)?;
         if self.node_finished {
             return Ok(());
         }
@@ -529,11 +534,11 @@ impl Transport {
 
     /// The host takes the node's next frame at loop time `t_s` (recorded as the node sent
     /// it, before any injected fault); `None` when nothing more has reached the host.
-    fn host_receives(&mut self, t_s: f64) -> anyhow::Result<Option<CanFrame>> {
+    fn host_receives(&mut self, t_s: f64) -> anyhow::Result<Option<Carried>> {
         loop {
             if let Some(frame) = self.faults.as_mut().and_then(|f| f.next_incoming(t_s)) {
                 self.wire.host_received += 1;
-                return Ok(Some(frame));
+                return Ok(Some(frame.into()));
             }
             let Some(frame) = self.to_host.pop_front() else {
                 return Ok(None);
@@ -544,7 +549,7 @@ impl Transport {
                     self.wire.host_received += 1;
                     return Ok(Some(frame));
                 }
-                Some(faults) => faults.incoming(&frame, t_s),
+                Some(faults) => faults.incoming(&frame.frame()?, t_s),
             }
         }
     }
@@ -576,11 +581,13 @@ impl Transport {
         Ok(())
     }
 
-    fn record(&mut self, frame: &CanFrame, t_s: f64) -> anyhow::Result<()> {
+    /// Records `frame` in the capture, if any, stamped with loop time `t_s`: the only place
+    /// a message is encoded when no fault is injected.
+    fn record(&mut self, frame: &Carried, t_s: f64) -> anyhow::Result<()> {
         if let Some(capture) = &mut self.capture {
             self.clock.set(Duration::from_secs_f64(t_s));
             capture
-                .record(frame)
+                .record(&frame.frame()?)
                 .context("recording the mirror's link")?;
         }
         Ok(())

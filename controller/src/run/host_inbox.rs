@@ -3,8 +3,7 @@
 //! kept as events, Distance frames (a sensor sharing the mirror's link) are kept, and
 //! malformed and foreign frames are counted. A node's LinkTimeout fault ends the run.
 
-use scanhil_protocol::can::CanFrame;
-use scanhil_protocol::message::{FaultKind, Message, MessageError, NodeId, NodeState};
+use scanhil_protocol::message::{Carried, FaultKind, Message, MessageError, NodeId, NodeState};
 use scanhil_protocol::plant_units::{FULL_RANGE_DEG, SensingPair};
 
 use super::loop_error::LoopError;
@@ -104,7 +103,7 @@ impl HostInbox {
         &self.link
     }
 
-    /// Files a frame received at loop time `t_s` (wall-clock `arrived`, kept with Distance
+    /// Files a frame (or, in one process, a message) received at loop time `t_s` (wall-clock `arrived`, kept with Distance
     /// frames); returns an angle reading's sequence counter and angles. Angle readings are
     /// not counted here: [`Self::count_reading`] does, where the loop takes one.
     ///
@@ -112,11 +111,11 @@ impl HostInbox {
     /// [`LoopError::NodeFault`] when a node reports its own link timeout (the run ends).
     pub fn classify(
         &mut self,
-        frame: &CanFrame,
+        frame: &Carried,
         t_s: f64,
         arrived: tokio::time::Instant,
     ) -> Result<Option<(u16, SensingPair)>, LoopError> {
-        let message = match Message::decode(frame) {
+        let message = match frame.message() {
             Ok(message) => message,
             Err(MessageError::UnknownId(_)) => {
                 self.counters.foreign_frames += 1;

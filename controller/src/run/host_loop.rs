@@ -18,7 +18,7 @@
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::link::LinkError;
 use scanhil_protocol::message::{
-    CoilCommand, FaultKind, Message, NodeId, NodeState, Status, U24_MAX,
+    Carried, CoilCommand, FaultKind, Message, NodeId, NodeState, Status, U24_MAX,
 };
 use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
@@ -128,23 +128,13 @@ impl LoopRecord {
     /// Records reading `k` (the angles at loop time `(k + 1) * period`) against the reference
     /// at that instant.
     pub fn push_reading(&mut self, trajectory: &Trajectory, k: u64, angles: SensingPair) {
-        self.push_scaled_reading(trajectory, 1.0, k, angles);
+        let reference = trajectory.reference_rad((k + 1) as f64 * self.period_s);
+        self.push_reading_against(reference, k, angles);
     }
 
-    /// [`Self::push_reading`] against the reference scaled by `scale` (the power back-off's).
-    pub fn push_scaled_reading(
-        &mut self,
-        trajectory: &Trajectory,
-        scale: f64,
-        k: u64,
-        angles: SensingPair,
-    ) {
-        let t_s = (k + 1) as f64 * self.period_s;
-        let reference = trajectory.reference_rad(t_s);
-        let reference = SensingPair {
-            alpha: reference.alpha * scale,
-            beta: reference.beta * scale,
-        };
+    /// Records reading `k` against `reference_rad`, the reference at loop time
+    /// `(k + 1) * period` as the loop follows it (scaled by the power back-off).
+    pub fn push_reading_against(&mut self, reference: SensingPair, k: u64, angles: SensingPair) {
         if let Some(track) = &mut self.angles {
             track.push(angles);
             // Samples are paired only from the frame's start on: the lead-in's readings go
@@ -156,11 +146,11 @@ impl LoopRecord {
     }
 }
 
-/// A frame to send and the loop time its recording is stamped with, s.
+/// A message to send and the loop time its recording is stamped with, s.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct StampedFrame {
-    /// The frame.
-    pub frame: CanFrame,
+pub struct StampedMessage {
+    /// The message (checked: its frame encodes), or a frame as it is.
+    pub carried: Carried,
     /// Loop time, s.
     pub t_s: f64,
 }
@@ -168,11 +158,12 @@ pub struct StampedFrame {
 /// What the transport does next.
 #[derive(Debug, Clone, PartialEq)]
 pub enum HostAction {
-    /// Send these frames in order; report a failure with [`HostLoop::on_error`].
-    Send(Vec<StampedFrame>),
+    /// Send the period's CoilCommand and Step, in order; report a failure with
+    /// [`HostLoop::on_error`].
+    Send([StampedMessage; 2]),
     /// Send the frames of a stop (the zero command, the end of the run) in order, past any
     /// injected fault: they must reach the node as sent. A failure is reported like any.
-    SendStop(Vec<StampedFrame>),
+    SendStop(Vec<StampedMessage>),
     /// Wait for AngleReading(`period`) within the watchdog's allowance; frames received
     /// meanwhile are stamped with loop time `t_s` and go to [`HostLoop::on_frame`].
     AwaitReading {
@@ -235,6 +226,9 @@ pub struct HostLoop<'a> {
     tries_per_reading: u32,
     /// Allowances used up waiting for the current reading.
     silent_tries: u32,
+    /// The reference of a period, kept from its previous period's reading (which is recorded
+    /// against it) for its command: each is computed once.
+    next_reference: Option<(u64, SensingPair)>,
 }
 
 impl<'a> HostLoop<'a> {
@@ -258,6 +252,7 @@ impl<'a> HostLoop<'a> {
             backoff: PowerBackoff::inactive(),
             tries_per_reading: 1,
             silent_tries: 0,
+            next_reference: None,
         }
     }
 
@@ -275,7 +270,7 @@ impl<'a> HostLoop<'a> {
     /// period's Step to send again (the node answers a repeated Step with the same reading),
     /// or `None` when the reading's tries are used up (the transport then reports the link
     /// timeout with [`Self::on_error`]).
-    pub fn on_silence(&mut self) -> Option<StampedFrame> {
+    pub fn on_silence(&mut self) -> Option<StampedMessage> {
         let Phase::Reading(k) = self.phase else {
             return None;
         };
@@ -306,17 +301,15 @@ impl<'a> HostLoop<'a> {
                 if k == self.record.lead_in_periods {
                     self.record.saturated_in_lead_in = self.controller.saturated_periods();
                 }
-                let scale = self.backoff.scale_at(k);
-                let reference = self.trajectory.reference_rad(k as f64 * self.period_s);
-                let reference = SensingPair {
-                    alpha: reference.alpha * scale,
-                    beta: reference.beta * scale,
+                let reference = match self.next_reference.take() {
+                    Some((period, reference)) if period == k => reference,
+                    _ => self.reference_at(k),
                 };
                 let command = self.controller.step(reference, self.measured);
                 match period_frames(k, command, self.period_s) {
                     Ok(frames) => {
                         self.phase = Phase::Reading(k);
-                        HostAction::Send(frames.to_vec())
+                        HostAction::Send(frames)
                     }
                     Err(error) => {
                         self.stop(k, error);
@@ -358,18 +351,21 @@ impl<'a> HostLoop<'a> {
         }
     }
 
-    /// A frame arrived (at wall-clock `arrived`, kept with Distance frames).
-    pub fn on_frame(&mut self, frame: &CanFrame, arrived: tokio::time::Instant) -> Heard {
+    /// A frame (or, in one process, a message) arrived at wall-clock `arrived` (kept with
+    /// Distance frames).
+    pub fn on_frame(&mut self, frame: impl Into<Carried>, arrived: tokio::time::Instant) -> Heard {
+        let frame = frame.into();
         match self.phase {
             Phase::Reading(k) => {
                 let t_s = (k + 1) as f64 * self.period_s;
                 let events = self.inbox.events().len();
-                let classified = self.inbox.classify(frame, t_s, arrived);
+                let classified = self.inbox.classify(&frame, t_s, arrived);
                 if self.inbox.events()[events..]
                     .iter()
                     .any(|event| event.fault == Some(FaultKind::PowerLimit))
                 {
                     self.backoff.on_power_limit(k);
+                    self.next_reference = None;
                 }
                 match classified {
                     Err(error) => {
@@ -387,9 +383,9 @@ impl<'a> HostLoop<'a> {
                             return Heard::Nothing;
                         }
                         self.measured = angles;
-                        let scale = self.backoff.scale_at(k + 1);
-                        self.record
-                            .push_scaled_reading(self.trajectory, scale, k, angles);
+                        let reference = self.reference_at(k + 1);
+                        self.record.push_reading_against(reference, k, angles);
+                        self.next_reference = Some((k + 1, reference));
                         self.phase = Phase::Start(k + 1);
                         self.silent_tries = 0;
                         Heard::Reading(k)
@@ -399,7 +395,7 @@ impl<'a> HostLoop<'a> {
             }
             Phase::NodeReady => {
                 let events = self.inbox.events().len();
-                match self.inbox.classify(frame, self.end_time_s(), arrived) {
+                match self.inbox.classify(&frame, self.end_time_s(), arrived) {
                     Err(error) => {
                         self.record.stopped_by = Some(error);
                         self.phase = Phase::Done;
@@ -415,7 +411,7 @@ impl<'a> HostLoop<'a> {
             }
             // Nothing is awaited: filed, but it changes nothing.
             Phase::Start(_) | Phase::Stopping(_) | Phase::Closing | Phase::Done => {
-                let _ = self.inbox.classify(frame, self.end_time_s(), arrived);
+                let _ = self.inbox.classify(&frame, self.end_time_s(), arrived);
                 Heard::Nothing
             }
         }
@@ -474,6 +470,16 @@ impl<'a> HostLoop<'a> {
         (self.record, self.inbox)
     }
 
+    /// The reference of period `k` (at loop time `k * period`), scaled by the power back-off.
+    fn reference_at(&self, k: u64) -> SensingPair {
+        let scale = self.backoff.scale_at(k);
+        let reference = self.trajectory.reference_rad(k as f64 * self.period_s);
+        SensingPair {
+            alpha: reference.alpha * scale,
+            beta: reference.beta * scale,
+        }
+    }
+
     fn stop(&mut self, k: u64, error: LoopError) {
         self.record.stopped_by = Some(error);
         self.phase = Phase::Stopping(k);
@@ -493,7 +499,7 @@ pub fn period_frames(
     k: u64,
     command_a: ActuatorPair,
     period_s: f64,
-) -> Result<[StampedFrame; 2], LoopError> {
+) -> Result<[StampedMessage; 2], LoopError> {
     let t_s = k as f64 * period_s;
     Ok([
         coil_command_frame(k, command_a, t_s)?,
@@ -509,7 +515,7 @@ pub fn coil_command_frame(
     k: u64,
     command_a: ActuatorPair,
     t_s: f64,
-) -> Result<StampedFrame, LoopError> {
+) -> Result<StampedMessage, LoopError> {
     let command = Message::CoilCommand(CoilCommand::from_amps(k as u16, command_a));
     stamped(&command, t_s)
 }
@@ -521,7 +527,7 @@ pub fn coil_command_frame(
 ///
 /// # Errors
 /// [`LoopError::Encode`] when a frame cannot be encoded.
-pub fn stop_frames(periods_done: u64, period_s: f64) -> Result<[StampedFrame; 2], LoopError> {
+pub fn stop_frames(periods_done: u64, period_s: f64) -> Result<[StampedMessage; 2], LoopError> {
     let t_s = periods_done as f64 * period_s;
     Ok([
         coil_command_frame(periods_done, ActuatorPair::default(), t_s)?,
@@ -534,7 +540,7 @@ pub fn stop_frames(periods_done: u64, period_s: f64) -> Result<[StampedFrame; 2]
 ///
 /// # Errors
 /// [`LoopError::Encode`] when the status cannot be encoded.
-fn end_frame(periods_done: u64, period_s: f64) -> Result<StampedFrame, LoopError> {
+fn end_frame(periods_done: u64, period_s: f64) -> Result<StampedMessage, LoopError> {
     let t_s = periods_done as f64 * period_s;
     let status = Message::Status(Status {
         node: NodeId::Controller,
@@ -545,11 +551,23 @@ fn end_frame(periods_done: u64, period_s: f64) -> Result<StampedFrame, LoopError
     stamped(&status, t_s)
 }
 
-fn stamped(message: &Message, t_s: f64) -> Result<StampedFrame, LoopError> {
-    let frame = message
-        .encode()
-        .map_err(|error| LoopError::Encode(error.to_string()))?;
-    Ok(StampedFrame { frame, t_s })
+/// `message` to send at loop time `t_s`, its fields checked as encoding checks them.
+fn stamped(message: &Message, t_s: f64) -> Result<StampedMessage, LoopError> {
+    let carried =
+        Carried::checked(*message).map_err(|error| LoopError::Encode(error.to_string()))?;
+    Ok(StampedMessage { carried, t_s })
+}
+
+impl StampedMessage {
+    /// The frame a link sends.
+    ///
+    /// # Errors
+    /// [`LoopError::Encode`] when the message cannot be encoded (never for one [`HostLoop`] made: it was checked).
+    pub fn frame(&self) -> Result<CanFrame, LoopError> {
+        self.carried
+            .frame()
+            .map_err(|error| LoopError::Encode(error.to_string()))
+    }
 }
 
 #[cfg(test)]

@@ -9,7 +9,9 @@ use scanhil_protocol::link::{ArrivalSource, CanLink, LinkError, VirtualClock};
 use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
 pub use super::host_inbox::{HostInbox, MirrorLinkCounters, NodeEvent};
-use super::host_loop::{CoilsAtEnd, StampedFrame, coil_command_frame, period_frames, stop_frames};
+use super::host_loop::{
+    CoilsAtEnd, StampedMessage, coil_command_frame, period_frames, stop_frames,
+};
 use super::interrupt::Interrupt;
 use super::link_faults::{InjectedFrameFaults, LinkFaults};
 pub use super::loop_error::LoopError;
@@ -179,7 +181,9 @@ impl MirrorLink {
             let frame = CanId::standard(raw_id)
                 .and_then(|can_id| CanFrame::new(can_id, &[0xFF, 0xFF]).ok())
                 .expect("a 2-byte classical frame with an 11-bit id");
-            self.send_period(k, &[StampedFrame { frame, t_s }]).await?;
+            let carried = scanhil_protocol::message::Carried::Frame(frame);
+            self.send_period(k, &[StampedMessage { carried, t_s }])
+                .await?;
             sent.push(format!("{name} with 2 data bytes"));
         }
         Ok(sent.join(", "))
@@ -270,7 +274,7 @@ impl MirrorLink {
     pub async fn send_stop(
         &mut self,
         period: u64,
-        frames: &[StampedFrame],
+        frames: &[StampedMessage],
     ) -> Result<(), LoopError> {
         let deadline = tokio::time::Instant::now() + STOP_SEND_ALLOWANCE;
         self.send_until(period, frames, deadline, false).await
@@ -341,7 +345,7 @@ impl MirrorLink {
     pub async fn send_period(
         &mut self,
         period: u64,
-        frames: &[StampedFrame],
+        frames: &[StampedMessage],
     ) -> Result<(), LoopError> {
         let deadline = tokio::time::Instant::now() + self.total_allowance();
         self.send_until(period, frames, deadline, true).await
@@ -355,7 +359,7 @@ impl MirrorLink {
     pub async fn send_within(
         &mut self,
         period: u64,
-        frames: &[StampedFrame],
+        frames: &[StampedMessage],
         deadline: tokio::time::Instant,
         interrupt: &mut Interrupt,
     ) -> Result<(), LoopError> {
@@ -370,7 +374,7 @@ impl MirrorLink {
     async fn send_until(
         &mut self,
         period: u64,
-        frames: &[StampedFrame],
+        frames: &[StampedMessage],
         deadline: tokio::time::Instant,
         faulted: bool,
     ) -> Result<(), LoopError> {
@@ -389,15 +393,16 @@ impl MirrorLink {
     /// one flush.
     async fn write_frames(
         &mut self,
-        frames: &[StampedFrame],
+        frames: &[StampedMessage],
         faulted: bool,
     ) -> Result<(), LoopError> {
-        for frame in frames {
-            self.at(frame.t_s);
+        for stamped in frames {
+            self.at(stamped.t_s);
+            let frame = stamped.frame()?;
             match self.faults.as_mut().filter(|_| faulted) {
-                None => self.port.queue(&frame.frame).await?,
+                None => self.port.queue(&frame).await?,
                 Some(faults) => {
-                    let passed: Vec<CanFrame> = faults.outgoing(&frame.frame, frame.t_s).collect();
+                    let passed: Vec<CanFrame> = faults.outgoing(&frame, stamped.t_s).collect();
                     for frame in &passed {
                         self.port.queue(frame).await?;
                     }
@@ -541,6 +546,6 @@ impl MirrorLink {
         t_s: f64,
     ) -> Result<Option<(u16, SensingPair)>, LoopError> {
         let arrived = self.last_arrival();
-        self.inbox.classify(frame, t_s, arrived)
+        self.inbox.classify(&frame.into(), t_s, arrived)
     }
 }

@@ -165,7 +165,7 @@ pub async fn run_answers(
                 let send = async {
                     for send in answer.sends {
                         match send {
-                            NodeSend::Frame(frame) => links.fsm.queue(&frame).await?,
+                            NodeSend::Frame(frame) => links.fsm.queue(&frame.frame()?).await?,
                             NodeSend::Samples(samples) => {
                                 links.sensor.offer(&samples);
                                 links.sensor.release(until_s, &mut links.fsm).await?;
@@ -206,7 +206,7 @@ pub async fn run_answers(
                 {
                     flushed?;
                 }
-                return end_of_run(&ready, links).await;
+                return end_of_run(&ready.frame()?, links).await;
             }
         }
     }

@@ -10,7 +10,8 @@
 
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::message::{
-    AngleReading, Fault, FaultKind, Message, MessageError, NodeId, NodeState, Status, U24_MAX,
+    AngleReading, Carried, Fault, FaultKind, Message, MessageError, NodeId, NodeState, Status,
+    U24_MAX,
 };
 
 use super::lockstep::LockstepAnswers;
@@ -23,8 +24,8 @@ use crate::sensor::IldSample;
 /// period (on the sensor's own port).
 #[derive(Debug, Clone, PartialEq)]
 pub enum NodeSend {
-    /// A frame on the mirror's CAN link.
-    Frame(CanFrame),
+    /// A frame on the mirror's CAN link (a message the node made, or a recorded frame).
+    Frame(Carried),
     /// The sensor's samples of the period just stepped.
     Samples(Vec<IldSample>),
     /// The sensor's output cycles of a recorded period (raw values), sent as they are
@@ -42,7 +43,7 @@ pub enum NodeReply {
     /// command).
     Send(Vec<NodeSend>),
     /// The controller ended the run: send this frame, the node's Status(ready), last.
-    EndOfRun(CanFrame),
+    EndOfRun(Carried),
 }
 
 /// Why the node cannot answer.
@@ -66,7 +67,7 @@ pub struct LockstepNode<'a> {
     heartbeat_every: u64,
     /// The Step counter of the period just stepped and its angle reading, answered again
     /// when that Step comes again.
-    last_reading: Option<(u32, CanFrame)>,
+    last_reading: Option<(u32, Carried)>,
 }
 
 impl<'a> LockstepNode<'a> {
@@ -87,12 +88,12 @@ impl<'a> LockstepNode<'a> {
         self.node
     }
 
-    /// Handles one frame from the controller.
+    /// Handles one frame (or, in one process, one message) from the controller.
     ///
     /// # Errors
     /// [`LockstepNodeError`]: the plant refused a command, or a frame cannot be encoded.
-    pub fn on_frame(&mut self, frame: &CanFrame) -> Result<NodeReply, LockstepNodeError> {
-        let message = match Message::decode(frame) {
+    pub fn on_frame(&mut self, frame: impl Into<Carried>) -> Result<NodeReply, LockstepNodeError> {
+        let message = match frame.into().message() {
             Ok(message) => message,
             Err(MessageError::UnknownId(_)) => return Ok(NodeReply::Ignored),
             Err(_) => {
@@ -143,19 +144,17 @@ impl<'a> LockstepNode<'a> {
             return Ok(Vec::new());
         }
         let k = self.node.next_period();
-        let mut sends = Vec::new();
-        for output in self.node.step()? {
-            match output {
-                NodeOutput::Angles(plant_step) => {
-                    let reading = angle_frame(&plant_step)?;
-                    self.last_reading = Some((step, reading));
-                    sends.push(NodeSend::Frame(reading));
-                    sends.push(NodeSend::Samples(plant_step.sensor_samples));
-                }
-                NodeOutput::Fault(kind, detail) => {
-                    sends.push(NodeSend::Frame(fault_frame(kind, detail, k)?));
-                }
-            }
+        let NodeOutput {
+            step: plant_step,
+            started_faults,
+        } = self.node.step()?;
+        let reading = angle_frame(&plant_step)?;
+        self.last_reading = Some((step, reading));
+        let mut sends = Vec::with_capacity(3 + started_faults.len());
+        sends.push(NodeSend::Frame(reading));
+        sends.push(NodeSend::Samples(plant_step.sensor_samples));
+        for (kind, detail) in started_faults {
+            sends.push(NodeSend::Frame(fault_frame(kind, detail, k)?));
         }
         if k.is_multiple_of(self.heartbeat_every) {
             let period_s = self.node.plant().period_s();
@@ -204,47 +203,45 @@ pub fn last_frames(
 ) -> Result<[CanFrame; 2], MessageError> {
     let k = node.next_period();
     Ok([
-        fault_frame(fault, detail, k)?,
-        status_frame(NodeState::Fault, k, node.plant().period_s())?,
+        fault_frame(fault, detail, k)?.frame()?,
+        status_frame(NodeState::Fault, k, node.plant().period_s())?.frame()?,
     ])
 }
 
-/// The AngleReading frame of a stepped period (sequence counter = period mod 2^16).
+/// The AngleReading of a stepped period (sequence counter = period mod 2^16).
 ///
 /// # Errors
 /// [`MessageError`] if the message cannot be encoded (never for the mirror's angles).
-pub fn angle_frame(step: &PlantStep) -> Result<CanFrame, MessageError> {
+pub fn angle_frame(step: &PlantStep) -> Result<Carried, MessageError> {
     let reading = AngleReading::from_rad(step.period_index as u16, step.measured_angles_rad);
-    Message::AngleReading(reading).encode()
+    Carried::checked(Message::AngleReading(reading))
 }
 
 /// The mirror node's fault frame for a fault that started in period `k`.
 ///
 /// # Errors
 /// [`MessageError`] if the message cannot be encoded.
-pub fn fault_frame(kind: FaultKind, detail: i32, k: u64) -> Result<CanFrame, MessageError> {
-    Message::Fault(Fault {
+pub fn fault_frame(kind: FaultKind, detail: i32, k: u64) -> Result<Carried, MessageError> {
+    Carried::checked(Message::Fault(Fault {
         node: NodeId::Fsm,
         kind,
         detail,
         step: k as u16,
-    })
-    .encode()
+    }))
 }
 
 /// The mirror node's status frame in period `k` (its node time is the loop time, in us).
 ///
 /// # Errors
 /// [`MessageError`] if the message cannot be encoded.
-pub fn status_frame(state: NodeState, k: u64, period_s: f64) -> Result<CanFrame, MessageError> {
+pub fn status_frame(state: NodeState, k: u64, period_s: f64) -> Result<Carried, MessageError> {
     let node_time_us = (k as f64 * period_s * 1e6).round() as u64;
-    Message::Status(Status {
+    Carried::checked(Message::Status(Status {
         node: NodeId::Fsm,
         state,
         step: (k & u64::from(U24_MAX)) as u32,
         node_time_us: (node_time_us & u64::from(U24_MAX)) as u32,
-    })
-    .encode()
+    }))
 }
 
 /// Periods between two status frames (at least 1).

@@ -10,14 +10,16 @@ use scanhil_protocol::plant_units::ActuatorPair;
 use crate::plant::{Plant, PlantError, PlantEvent, PlantStep};
 use crate::sensor_faults::{SensorFaultCounts, SensorFaultModel};
 
-/// What the node wants sent after an input.
+/// What the node sends after a period: its angle reading, then a fault frame for each fault
+/// that started in it.
 #[derive(Debug, Clone, PartialEq)]
-pub enum NodeOutput {
-    /// The angle reading of the period just stepped.
-    Angles(PlantStep),
-    /// A fault frame: the fault and its detail (over-current: the commanded current in uA;
-    /// power limit: the mean power in mW; link timeout: the missed periods).
-    Fault(FaultKind, i32),
+pub struct NodeOutput {
+    /// The period just stepped (its angle reading and sensor samples).
+    pub step: PlantStep,
+    /// The faults that started in it, each with its detail (over-current: the commanded
+    /// current in uA; power limit: the mean power in mW); empty (no allocation) in a period
+    /// without one.
+    pub started_faults: Vec<(FaultKind, i32)>,
 }
 
 /// How far behind the newest command (by its sequence counter) a command counts as late and
@@ -190,7 +192,7 @@ impl MirrorNode {
     ///
     /// # Errors
     /// The plant's error (a non-finite command): the caller reports it and stops.
-    pub fn step(&mut self) -> Result<Vec<NodeOutput>, PlantError> {
+    pub fn step(&mut self) -> Result<NodeOutput, PlantError> {
         if self.state != NodeState::Fault {
             self.state = NodeState::Running;
         }
@@ -233,16 +235,14 @@ impl MirrorNode {
         if step.faulted {
             self.enter_fault();
         }
-        let mut out = vec![NodeOutput::Angles(step)];
         let kinds: Vec<FaultKind> = faults.iter().map(|(kind, _)| *kind).collect();
-        for (kind, detail) in faults {
-            if !self.active_faults.contains(&kind) {
-                self.counters.faults += 1;
-                out.push(NodeOutput::Fault(kind, detail));
-            }
-        }
+        faults.retain(|(kind, _)| !self.active_faults.contains(kind));
+        self.counters.faults += faults.len() as u64;
         self.active_faults = kinds;
-        Ok(out)
+        Ok(NodeOutput {
+            step,
+            started_faults: faults,
+        })
     }
 
     /// The watchdog fired after `missed_periods`: coil currents drop to zero, and the fault

@@ -10,7 +10,7 @@
 //! unchanged. In real time a late answer is a stall of the node's clock: the period's frames go
 //! out late and the periods after it keep the delay (no catch-up burst).
 
-use scanhil_protocol::message::{AngleReading, Message, MessageError};
+use scanhil_protocol::message::{AngleReading, Carried, Message, MessageError};
 
 use super::lockstep_node::NodeSend;
 
@@ -126,13 +126,15 @@ impl Misbehaving {
                 out.push(send);
                 continue;
             };
-            match Message::decode(&frame) {
+            match frame.message() {
                 Ok(Message::AngleReading(reading)) => {
                     late |= self.rule == Misbehaviour::LateAnswers
                         && self.answers == MISBEHAVE_FROM_ANSWER;
                     let reading = self.reading(reading);
                     self.answers += 1;
-                    out.push(NodeSend::Frame(Message::AngleReading(reading).encode()?));
+                    out.push(NodeSend::Frame(Carried::checked(Message::AngleReading(
+                        reading,
+                    ))?));
                 }
                 Ok(Message::Fault(_)) if self.rule == Misbehaviour::NoFaultFrame => {}
                 Ok(Message::Status(_)) if self.rule == Misbehaviour::NoStatusFrame => {}
@@ -174,12 +176,11 @@ mod tests {
 
     fn reading(seq: u16, alpha_urad: i32) -> NodeSend {
         NodeSend::Frame(
-            Message::AngleReading(AngleReading {
+            Carried::checked(Message::AngleReading(AngleReading {
                 seq,
                 alpha_urad,
                 beta_urad: -alpha_urad,
-            })
-            .encode()
+            }))
             .unwrap(),
         )
     }
@@ -189,7 +190,7 @@ mod tests {
             .sends
             .iter()
             .filter_map(|send| match send {
-                NodeSend::Frame(frame) => Some(Message::decode(frame).unwrap()),
+                NodeSend::Frame(frame) => Some(frame.message().unwrap()),
                 NodeSend::Samples(_) | NodeSend::Cycles(_) => None,
             })
             .collect()
@@ -235,7 +236,7 @@ mod tests {
 
     fn decode(send: &NodeSend) -> Message {
         match send {
-            NodeSend::Frame(frame) => Message::decode(frame).unwrap(),
+            NodeSend::Frame(frame) => frame.message().unwrap(),
             NodeSend::Samples(_) | NodeSend::Cycles(_) => unreachable!("a frame"),
         }
     }
@@ -243,23 +244,21 @@ mod tests {
     #[test]
     fn fault_and_status_frames_are_dropped_by_their_rules_only() {
         let fault = NodeSend::Frame(
-            Message::Fault(Fault {
+            Carried::checked(Message::Fault(Fault {
                 node: NodeId::Fsm,
                 kind: FaultKind::OverCurrent,
                 detail: 8_000_000,
                 step: 3,
-            })
-            .encode()
+            }))
             .unwrap(),
         );
         let status = NodeSend::Frame(
-            Message::Status(Status {
+            Carried::checked(Message::Status(Status {
                 node: NodeId::Fsm,
                 state: NodeState::Running,
                 step: 3,
                 node_time_us: 150,
-            })
-            .encode()
+            }))
             .unwrap(),
         );
         let answer = vec![reading(3, 0), fault.clone(), status.clone()];

@@ -37,7 +37,7 @@ use std::time::{Duration, Instant};
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::link::LinkError;
 use scanhil_protocol::loop_timing::{MissedDeadline, PeriodRecorder};
-use scanhil_protocol::message::{CoilCommand, Message, MessageError, NodeId, NodeState};
+use scanhil_protocol::message::{Carried, CoilCommand, Message, MessageError, NodeId, NodeState};
 
 use super::lockstep::{end_of_run, host_stopped_reading};
 use super::lockstep_node::{
@@ -109,23 +109,21 @@ impl ClockedNode for MirrorNode {
     fn tick(&mut self, heartbeat: bool) -> anyhow::Result<Vec<NodeSend>> {
         let k = MirrorNode::next_period(self);
         let period_s = self.plant().period_s();
-        let mut sends = vec![NodeSend::Frame(Message::Sync { step: k as u32 }.encode()?)];
-        let mut samples = Vec::new();
-        for output in self.step()? {
-            match output {
-                NodeOutput::Angles(step) => {
-                    sends.push(NodeSend::Frame(angle_frame(&step)?));
-                    samples = step.sensor_samples;
-                }
-                NodeOutput::Fault(kind, detail) => {
-                    sends.push(NodeSend::Frame(fault_frame(kind, detail, k)?));
-                }
-            }
+        let mut sends = vec![NodeSend::Frame(Carried::checked(Message::Sync {
+            step: k as u32,
+        })?)];
+        let NodeOutput {
+            step,
+            started_faults,
+        } = self.step()?;
+        sends.push(NodeSend::Frame(angle_frame(&step)?));
+        for (kind, detail) in started_faults {
+            sends.push(NodeSend::Frame(fault_frame(kind, detail, k)?));
         }
         if heartbeat {
             sends.push(NodeSend::Frame(status_frame(self.state(), k, period_s)?));
         }
-        sends.push(NodeSend::Samples(samples));
+        sends.push(NodeSend::Samples(step.sensor_samples));
         Ok(sends)
     }
 
@@ -157,7 +155,8 @@ impl ClockedNode for MirrorNode {
             self.state(),
             MirrorNode::next_period(self),
             self.plant().period_s(),
-        )
+        )?
+        .frame()
     }
 }
 
@@ -351,7 +350,13 @@ pub async fn run(
         let mut frames = Vec::with_capacity(sends.len());
         for send in sends {
             match send {
-                NodeSend::Frame(frame) => frames.push(frame),
+                NodeSend::Frame(frame) => match frame.frame() {
+                    Ok(frame) => frames.push(frame),
+                    Err(err) => {
+                        link_error = Some(err.into());
+                        break 'ticks;
+                    }
+                },
                 NodeSend::Samples(samples) => links.sensor.offer(&samples),
                 NodeSend::Cycles(cycles) => {
                     if let Err(err) = links.sensor.write_cycles(&cycles) {

@@ -24,7 +24,7 @@ use std::time::Duration;
 
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::message::{
-    AMPS_PER_COUNT, CoilCommand, FaultKind, Message, MessageError, NodeId, NodeState,
+    AMPS_PER_COUNT, Carried, CoilCommand, FaultKind, Message, MessageError, NodeId, NodeState,
 };
 use scanhil_protocol::plant_units::ActuatorPair;
 
@@ -228,12 +228,12 @@ impl ReplayNode {
 
     /// The node's answer to the controller's end of the run: the recorded one, or Status(ready)
     /// when none was recorded.
-    fn end_of_run(&mut self) -> Result<CanFrame, MessageError> {
+    fn end_of_run(&mut self) -> Result<Carried, MessageError> {
         if self.state != NodeState::Fault {
             self.state = NodeState::Ready;
         }
         match self.recording.end_of_run.first() {
-            Some(frame) => Ok(*frame),
+            Some(frame) => Ok(Carried::Frame(*frame)),
             None => status_frame(NodeState::Ready, self.next_period as u64, self.period_s),
         }
     }
@@ -244,7 +244,7 @@ impl ReplayNode {
         if self.last_step == Some(step) {
             self.counters.repeated_steps += 1;
             let period = &self.recording.periods[self.next_period - 1];
-            return Ok(vec![NodeSend::Frame(period.frames[period.reading])]);
+            return Ok(vec![NodeSend::Frame(period.frames[period.reading].into())]);
         }
         if u64::from(step) != self.next_period as u64 & u64::from(u32::MAX) {
             self.counters.out_of_order_steps += 1;
@@ -265,7 +265,11 @@ impl ReplayNode {
             (measured as usize).clamp(self.next_cycle, self.recording.cycles.len())
         };
         let cycles = self.recording.cycles[self.next_cycle..end_cycle].to_vec();
-        let mut sends: Vec<NodeSend> = period.frames.iter().copied().map(NodeSend::Frame).collect();
+        let mut sends: Vec<NodeSend> = period
+            .frames
+            .iter()
+            .map(|frame| NodeSend::Frame(frame.into()))
+            .collect();
         sends.insert(period.reading + 1, NodeSend::Cycles(cycles));
         self.counters.sensor_cycles += (end_cycle - self.next_cycle) as u64;
         self.next_cycle = end_cycle;
@@ -313,8 +317,8 @@ impl LockstepAnswers for ReplayNode {
         let k = self.next_period as u64;
         let detail = i32::try_from(missed_periods).unwrap_or(i32::MAX);
         Ok([
-            fault_frame(FaultKind::LinkTimeout, detail, k)?,
-            status_frame(NodeState::Fault, k, self.period_s)?,
+            fault_frame(FaultKind::LinkTimeout, detail, k)?.frame()?,
+            status_frame(NodeState::Fault, k, self.period_s)?.frame()?,
         ])
     }
 
@@ -378,7 +382,7 @@ impl ClockedNode for ReplayNode {
     }
 
     fn run_ended(&mut self) -> Result<CanFrame, MessageError> {
-        self.end_of_run()
+        self.end_of_run()?.frame()
     }
 }
 
@@ -478,20 +482,20 @@ mod tests {
         // Cycles measured before 1.5, 3.0 (the last period: all that is left).
         assert_eq!(
             step(&mut node, 0),
-            [NodeSend::Frame(reading(0)), cycles(&[0, 1])]
+            [NodeSend::Frame(reading(0).into()), cycles(&[0, 1])]
         );
         assert_eq!(node.state(), NodeState::Running);
         assert_eq!(
             step(&mut node, 1),
             [
-                NodeSend::Frame(heartbeat(0)),
-                NodeSend::Frame(reading(1)),
+                NodeSend::Frame(heartbeat(0).into()),
+                NodeSend::Frame(reading(1).into()),
                 cycles(&[2])
             ]
         );
         assert_eq!(
             step(&mut node, 2),
-            [NodeSend::Frame(reading(2)), cycles(&[3, 4])]
+            [NodeSend::Frame(reading(2).into()), cycles(&[3, 4])]
         );
         assert!((node.loop_time_s() - 3.0 * PERIOD_S).abs() < 1e-15);
         let counters = node.counters();
@@ -527,12 +531,12 @@ mod tests {
         let mut node = node();
         step(&mut node, 0);
         step(&mut node, 1);
-        assert_eq!(step(&mut node, 1), [NodeSend::Frame(reading(1))]);
+        assert_eq!(step(&mut node, 1), [NodeSend::Frame(reading(1).into())]);
         assert_eq!(node.counters().repeated_steps, 1);
         assert!(step(&mut node, 0).is_empty());
         assert!(step(&mut node, 5).is_empty());
         assert_eq!(node.counters().out_of_order_steps, 2);
-        assert_eq!(step(&mut node, 2)[0], NodeSend::Frame(reading(2)));
+        assert_eq!(step(&mut node, 2)[0], NodeSend::Frame(reading(2).into()));
     }
 
     #[test]
@@ -551,13 +555,16 @@ mod tests {
         let mut node = node();
         assert_eq!(
             node.tick(true).unwrap(),
-            [NodeSend::Frame(reading(0)), cycles(&[0, 1])]
+            [NodeSend::Frame(reading(0).into()), cycles(&[0, 1])]
         );
         assert_eq!(ClockedNode::next_period(&node), 1);
         // Period 0 has no command before it to miss.
         assert_eq!(node.stale_periods(), 0);
         // No command before period 1 went out: stale.
-        assert_eq!(node.tick(false).unwrap()[1], NodeSend::Frame(reading(1)));
+        assert_eq!(
+            node.tick(false).unwrap()[1],
+            NodeSend::Frame(reading(1).into())
+        );
         assert_eq!(node.stale_periods(), 1);
         node.take_command(&command(2, 20, -2));
         node.tick(false).unwrap();
@@ -667,7 +674,7 @@ mod tests {
         });
         assert_eq!(
             sends(node.on_frame(&frame).unwrap())[0],
-            NodeSend::Frame(reading(0))
+            NodeSend::Frame(reading(0).into())
         );
         assert_eq!(node.comparison().differing, 1);
         assert_eq!(node.comparison().first_divergence.unwrap().period, 0);
@@ -697,7 +704,10 @@ mod tests {
             PERIOD_S,
             0.0,
         );
-        assert_eq!(node.on_frame(&end).unwrap(), NodeReply::EndOfRun(recorded));
+        assert_eq!(
+            node.on_frame(&end).unwrap(),
+            NodeReply::EndOfRun(recorded.into())
+        );
         // The controller's running status is no end.
         let running = encode(Message::Status(Status {
             node: NodeId::Controller,
@@ -725,7 +735,13 @@ mod tests {
                 step: 1,
             })
         );
-        assert_eq!(status, status_frame(NodeState::Fault, 1, PERIOD_S).unwrap());
+        assert_eq!(
+            status,
+            status_frame(NodeState::Fault, 1, PERIOD_S)
+                .unwrap()
+                .frame()
+                .unwrap()
+        );
         assert_eq!(node.state(), NodeState::Fault);
         assert_eq!(node.held_command_a(), ActuatorPair::default());
         // A faulted node stays so through a step and the end of the run.
