@@ -1,12 +1,14 @@
 //! A lockstep scenario run in one process. The host's [`HostLoop`] sends its messages; the
 //! in-memory transport records each in the candump capture and hands it to the mirror node's
 //! [`LockstepNode`] at once, which queues its answers for the host in the order the serve loop
-//! would write them to the pty. Messages go across as they are ([`Carried::Message`]): a frame
-//! is encoded only for the capture (or for injected frame faults, which act on bytes), and
-//! never decoded again; a message is checked as encoding would check it, and a property test
-//! in `scanhil-protocol` holds that decoding its frame gives it back, so the run is the one a
-//! link would carry (`tests/bit_for_bit.rs` compares it with the pty run byte for byte). The sensor's samples go out as the ILD stream's bytes
-//! (recorded as `sensor.ild`) and are decoded by the host's [`IldSampleDecoder`].
+//! would write them to the pty. The sensor's cycles go to the host's decoder
+//! ([`IldSampleDecoder::push_cycle`]), their bytes made only for `sensor.ild`.
+//!
+//! Messages go across as they are ([`Carried::Message`]): a frame is encoded only for the
+//! capture (or for injected frame faults, which act on bytes), and never decoded again. A
+//! message is checked as encoding would check it; property tests hold that a message and a
+//! cycle handed over read as their bytes decode, and `tests/bit_for_bit.rs` compares the run
+//! with the pty run (which encodes and decodes everything) byte for byte.
 //!
 //! The recording matches a pty run frame for frame: the host records a received frame when it
 //! takes it from the queue, stamped with the loop time it was waiting at, so the frames that
@@ -46,7 +48,7 @@ use scanhil_emulator::serve::sensor_port::SensorClockTrack;
 use scanhil_emulator::serve::{DEFAULT_HEARTBEAT_HZ, load_plant};
 use scanhil_protocol::can::CanFrame;
 use scanhil_protocol::ild::MeasuringRate;
-use scanhil_protocol::ild::stream::encode_cycle;
+use scanhil_protocol::ild::stream::encode_cycle_into;
 use scanhil_protocol::link::{CanCapture, CaptureClock, VirtualClock};
 use scanhil_protocol::message::Carried;
 use scanhil_protocol::plant_units::SensingPair;
@@ -393,19 +395,25 @@ struct MemorySensor {
     settings: IldSettings,
     track: SensorClockTrack,
     capture: Option<BufWriter<File>>,
+    /// A cycle's values (used again for every sample).
+    values: Vec<u32>,
+    /// A cycle's bytes for the capture (used again for every cycle).
+    bytes: Vec<u8>,
     decoder: IldSampleDecoder,
 }
 
 impl MemorySensor {
-    /// One output cycle of `values` goes to the host's decoder (and the capture) at `arrival`.
+    /// One output cycle of `values` goes to the host's decoder at `arrival`, handed over as
+    /// values ([`IldSampleDecoder::push_cycle`]); its bytes are made only for the capture.
     fn emit(&mut self, values: &[u32], arrival: tokio::time::Instant) -> anyhow::Result<()> {
-        let bytes = encode_cycle(values);
         if let Some(capture) = &mut self.capture {
+            self.bytes.clear();
+            encode_cycle_into(values, &mut self.bytes);
             capture
-                .write_all(&bytes)
+                .write_all(&self.bytes)
                 .context("recording the ILD stream")?;
         }
-        self.decoder.push(&bytes, arrival);
+        self.decoder.push_cycle(values, arrival);
         Ok(())
     }
 }
@@ -445,6 +453,8 @@ impl Transport {
                 settings,
                 track: SensorClockTrack::new(measuring_rate_hz),
                 capture,
+                values: Vec::new(),
+                bytes: Vec::new(),
                 decoder: IldSampleDecoder::new(layout),
             })
         } else {
@@ -560,14 +570,16 @@ impl Transport {
         let Some(sensor) = &mut self.sensor else {
             return Ok(());
         };
+        let mut values = std::mem::take(&mut sensor.values);
         for sample in samples {
-            let Some(values) = sensor.settings.cycle(sample) else {
+            if !sensor.settings.cycle_into(sample, &mut values) {
                 continue;
-            };
+            }
             sensor.track.measured(sample);
             sensor.track.sent(sample.counter);
             sensor.emit(&values, self.arrival)?;
         }
+        sensor.values = values;
         Ok(())
     }
 

@@ -12,6 +12,8 @@ use std::time::Duration;
 
 use scanhil_protocol::ild::IldValue;
 use scanhil_protocol::ild::command::{AddValue, IldOutputInfo, OutputValue};
+use scanhil_protocol::ild::stream::encode_cycle;
+use scanhil_protocol::ild::value::RAW_MAX;
 use scanhil_protocol::link::ild::{IldCounters, IldCycle, IldCycleAssembler, IldLink};
 use scanhil_protocol::link::role::Role;
 use scanhil_protocol::link::{ByteCapture, LinkError, LinkUri, PtyPair};
@@ -279,6 +281,28 @@ impl IldSampleDecoder {
         }
     }
 
+    /// One output cycle of `values` handed over in memory (no bytes between the two ends),
+    /// taken as [`Self::push`] takes its bytes (a property test below holds the two to the
+    /// same samples and counters): a whole cycle of the layout, with no other half assembled,
+    /// goes straight to the log, each value kept to the stream's 18 bits; any other goes
+    /// through its bytes, so it is counted as the line would count it.
+    pub fn push_cycle(&mut self, values: &[u32], arrived: tokio::time::Instant) {
+        match values.split_first() {
+            Some((&first, extras))
+                if values.len() == self.layout.values && self.assembler.is_between_cycles() =>
+            {
+                let cycle = IldCycle {
+                    distance: IldValue::from_raw(first & RAW_MAX),
+                    extras: extras.iter().map(|value| value & RAW_MAX).collect(),
+                    arrived,
+                    offset: 0,
+                };
+                add_cycle(&mut self.log, self.layout, &cycle);
+            }
+            _ => self.push(&encode_cycle(values), arrived),
+        }
+    }
+
     /// The samples and counters, handed over without a copy.
     #[must_use]
     pub fn finish(mut self) -> (Chunked<CountedSample>, SensorCounters) {
@@ -302,5 +326,50 @@ fn counters(log: &SampleLog, line: &IldCounters) -> SensorCounters {
         counter_gaps: log.counter_gaps(),
         resync_bytes: line.skipped_bytes,
         incomplete_cycles: line.incomplete_cycles,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use proptest::prelude::*;
+
+    use super::*;
+
+    fn decoded(
+        layout: SampleLayout,
+        cycles: &[Vec<u32>],
+        hand_over: impl Fn(&mut IldSampleDecoder, &[u32], tokio::time::Instant),
+    ) -> (Vec<CountedSample>, SensorCounters) {
+        let mut decoder = IldSampleDecoder::new(layout);
+        let arrived = tokio::time::Instant::now();
+        for cycle in cycles {
+            hand_over(&mut decoder, cycle, arrived);
+        }
+        let (samples, counters) = decoder.finish();
+        (samples.into_iter().collect(), counters)
+    }
+
+    proptest! {
+        /// Cycles handed over in memory give the samples and counters their bytes give,
+        /// whole cycles of the layout and others alike, values beyond 18 bits included.
+        #[test]
+        fn cycles_handed_over_decode_as_their_bytes(
+            cycles in prop::collection::vec(
+                prop::collection::vec(any::<u32>(), 0..4),
+                0..20,
+            ),
+            with_counter in any::<bool>(),
+        ) {
+            let layout = SampleLayout {
+                values: 2,
+                distance: 0,
+                counter: with_counter.then_some(1),
+            };
+            let through_bytes = decoded(layout, &cycles, |decoder, values, arrived| {
+                decoder.push(&encode_cycle(values), arrived);
+            });
+            let handed_over = decoded(layout, &cycles, IldSampleDecoder::push_cycle);
+            prop_assert_eq!(handed_over, through_bytes);
+        }
     }
 }

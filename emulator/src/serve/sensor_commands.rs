@@ -119,10 +119,17 @@ impl IldSettings {
     /// while the laser is off.
     #[must_use]
     pub fn cycle(&self, sample: &IldSample) -> Cycle {
-        if self.output != OUTPUT_RS422 {
-            return None;
-        }
         let mut values = Vec::with_capacity(1 + self.extras.len());
+        self.cycle_into(sample, &mut values).then_some(values)
+    }
+
+    /// [`Self::cycle`] into `values` (cleared first, a buffer used again for every sample);
+    /// whether there is a cycle.
+    pub fn cycle_into(&self, sample: &IldSample, values: &mut Vec<u32>) -> bool {
+        values.clear();
+        if self.output != OUTPUT_RS422 {
+            return false;
+        }
         if self.distance_on {
             values.push(if self.laser_on {
                 sample.value.raw()
@@ -139,7 +146,7 @@ impl IldSettings {
             AddValue::Intensity => INTENSITY,
             AddValue::State => 0,
         }));
-        (!values.is_empty()).then_some(values)
+        !values.is_empty()
     }
 
     /// Carries out one command line and returns the reply to send.

@@ -139,10 +139,16 @@ pub fn encode_word(raw: u32, first_in_cycle: bool) -> [u8; BYTES_PER_VALUE] {
 /// One output cycle: the first value marked as such, the others as further values.
 #[must_use]
 pub fn encode_cycle(raws: &[u32]) -> Vec<u8> {
-    raws.iter()
-        .enumerate()
-        .flat_map(|(i, &raw)| encode_word(raw, i == 0))
-        .collect()
+    let mut bytes = Vec::with_capacity(raws.len() * BYTES_PER_VALUE);
+    encode_cycle_into(raws, &mut bytes);
+    bytes
+}
+
+/// [`encode_cycle`], appended to `bytes` (a buffer used again for every cycle).
+pub fn encode_cycle_into(raws: &[u32], bytes: &mut Vec<u8>) {
+    for (i, &raw) in raws.iter().enumerate() {
+        bytes.extend_from_slice(&encode_word(raw, i == 0));
+    }
 }
 
 /// Incremental decoder of the value stream.

@@ -130,6 +130,12 @@ impl IldCycleAssembler {
         &self.counters
     }
 
+    /// Whether no cycle is half assembled (the next value starts one).
+    #[must_use]
+    pub fn is_between_cycles(&self) -> bool {
+        self.partial.is_none()
+    }
+
     /// Decodes `bytes` (read at `arrived`) and appends the cycles they complete to `cycles`.
     pub fn push(&mut self, bytes: &[u8], arrived: Instant, cycles: &mut VecDeque<IldCycle>) {
         for event in self.decoder.push(bytes) {
