@@ -639,6 +639,32 @@ fn write_tracking_plot(
 }
 
 #[cfg(test)]
+mod left_out_tests {
+    use super::{OutputsConfig, left_out};
+
+    #[test]
+    fn what_is_left_out_is_each_switched_off_group_in_order() {
+        let outputs = |recordings, figures| OutputsConfig {
+            recordings,
+            figures,
+        };
+        assert!(left_out(outputs(true, true)).is_empty());
+        assert_eq!(left_out(outputs(false, true)), ["fsm.log", "sensor.ild"]);
+        assert_eq!(
+            left_out(outputs(true, false)),
+            [
+                "tracking.svg",
+                "height_map.png",
+                "progressive.svg",
+                "snapshots.png",
+                "profiles.svg"
+            ]
+        );
+        assert_eq!(left_out(outputs(false, false)).len(), 7);
+    }
+}
+
+#[cfg(test)]
 mod tests {
     //! The real sensor's clock estimate (`estimate_sensor_clock`) from known counter/arrival
     //! pairs: each sample arrives a transmission time plus a random queueing delay after it
