@@ -112,13 +112,13 @@ fn a_run_sends_command_and_step_per_period_counts_what_it_files_and_ends_with_th
         // Foreign, malformed, a stale reading and a status: filed, the period goes on.
         let foreign = CanFrame::new(CanId::standard(0x555).unwrap(), &[1, 2]).unwrap();
         let malformed = CanFrame::new(CanId::standard(ids::ANGLE_READING).unwrap(), &[0]).unwrap();
-        assert_eq!(host.on_frame(&foreign, now()), Heard::Nothing);
-        assert_eq!(host.on_frame(&malformed, now()), Heard::Nothing);
-        assert_eq!(host.on_frame(&reading(k as u16 + 7), now()), Heard::Nothing);
+        assert_eq!(host.on_frame(foreign, now()), Heard::Nothing);
+        assert_eq!(host.on_frame(malformed, now()), Heard::Nothing);
+        assert_eq!(host.on_frame(reading(k as u16 + 7), now()), Heard::Nothing);
         let status = node_status(NodeState::Running, k as u32);
-        assert_eq!(host.on_frame(&status, now()), Heard::Nothing);
+        assert_eq!(host.on_frame(status, now()), Heard::Nothing);
         assert_eq!(host.next_action(), awaited);
-        assert_eq!(host.on_frame(&reading(k as u16), now()), Heard::Reading(k));
+        assert_eq!(host.on_frame(reading(k as u16), now()), Heard::Reading(k));
     }
     // The end: zero current (the next period's counter), then the controller's Status.
     let end = decoded_stop(host.next_action());
@@ -137,9 +137,9 @@ fn a_run_sends_command_and_step_per_period_counts_what_it_files_and_ends_with_th
             t_s: 2.0 * period_s
         }
     );
-    assert_eq!(host.on_frame(&reading(1), now()), Heard::Nothing);
+    assert_eq!(host.on_frame(reading(1), now()), Heard::Nothing);
     let ready = node_status(NodeState::Ready, 2);
-    assert_eq!(host.on_frame(&ready, now()), Heard::Ended);
+    assert_eq!(host.on_frame(ready, now()), Heard::Ended);
     assert_eq!(host.next_action(), HostAction::Done);
 
     let (record, inbox) = host.finish();
@@ -177,7 +177,7 @@ fn the_nodes_link_timeout_fault_stops_the_run_with_a_zero_command() {
     let trajectory = trajectory();
     let mut host = host_loop(&mut controller, &trajectory, 10);
     decoded(host.next_action());
-    assert_eq!(host.on_frame(&reading(0), now()), Heard::Reading(0));
+    assert_eq!(host.on_frame(reading(0), now()), Heard::Reading(0));
     decoded(host.next_action());
     let fault = Message::Fault(Fault {
         node: NodeId::Fsm,
@@ -187,7 +187,7 @@ fn the_nodes_link_timeout_fault_stops_the_run_with_a_zero_command() {
     })
     .encode()
     .unwrap();
-    assert_eq!(host.on_frame(&fault, now()), Heard::Stopped);
+    assert_eq!(host.on_frame(fault, now()), Heard::Stopped);
     let zero = decoded_stop(host.next_action());
     assert!(
         matches!(zero[..], [(Message::CoilCommand(c), t_s)] if c.seq == 1
@@ -219,7 +219,7 @@ fn silence_stops_a_period_but_ends_the_run_quietly_after_the_last() {
     let trajectory = trajectory();
     let mut host = host_loop(&mut controller, &trajectory, 1);
     decoded(host.next_action());
-    assert_eq!(host.on_frame(&reading(0), now()), Heard::Reading(0));
+    assert_eq!(host.on_frame(reading(0), now()), Heard::Reading(0));
     decoded_stop(host.next_action());
     host.on_error(timeout(1));
     assert_eq!(host.next_action(), HostAction::Done);

@@ -125,7 +125,7 @@ pub async fn run(
         };
         match received {
             Ok(frame) => {
-                if let Heard::Reading(k) = host.on_frame(&frame, tokio::time::Instant::now())
+                if let Heard::Reading(k) = host.on_frame(frame, tokio::time::Instant::now())
                     && k % 256 == 0
                 {
                     progress.set(k);
