@@ -593,3 +593,22 @@ impl IldLink {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_assembler_is_between_cycles_only_when_no_cycle_is_half_read() {
+        let mut assembler = IldCycleAssembler::new(2);
+        let mut cycles = VecDeque::new();
+        let now = Instant::now();
+        assert!(assembler.is_between_cycles());
+        let bytes = encode_cycle(&[100, 7]);
+        assembler.push(&bytes[..3], now, &mut cycles);
+        assert!(!assembler.is_between_cycles(), "the distance alone is half a cycle");
+        assembler.push(&bytes[3..], now, &mut cycles);
+        assert!(assembler.is_between_cycles());
+        assert_eq!(cycles.len(), 1);
+    }
+}
