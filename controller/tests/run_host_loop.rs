@@ -7,12 +7,13 @@ use std::time::Duration;
 use scanhil_controller::run::host_inbox::HostInbox;
 use scanhil_controller::run::host_loop::{Heard, HostAction, HostLoop, LoopRecord};
 use scanhil_controller::run::loop_error::LoopError;
+use scanhil_controller::run::power_backoff::PowerBackoff;
 use scanhil_controller::scan_controller::ScanController;
 use scanhil_controller::settings::ControllerSettings;
 use scanhil_controller::trajectory::Trajectory;
 use scanhil_protocol::can::{CanFrame, CanId};
 use scanhil_protocol::message::{
-    AngleReading, Fault, FaultKind, Message, NodeId, NodeState, Status, ids,
+    AngleReading, CoilCommand, Fault, FaultKind, Message, NodeId, NodeState, Status, ids,
 };
 use scanhil_protocol::plant_units::SensingPair;
 
@@ -241,4 +242,70 @@ fn silence_stops_a_period_but_ends_the_run_quietly_after_the_last() {
         record.stopped_by,
         Some(LoopError::LinkTimeout { .. })
     ));
+}
+
+/// Each period's command is the controller's answer to the reference at that period's start,
+/// scaled by the power back-off, and each reading is recorded against the reference at the
+/// instant it was taken (the one the next period commands), computed once for both.
+#[test]
+fn each_period_commands_the_reference_at_its_start_and_records_against_the_next() {
+    let (mut looped, mut by_hand) = (controller(), controller());
+    let trajectory = trajectory();
+    let period_s = looped.period_s();
+    let periods = 200;
+    let backoff = PowerBackoff::new(Some(50.0), 30.0, 0.9, 20);
+    let mut twin_backoff = backoff.clone();
+    let mut host = host_loop(&mut looped, &trajectory, periods).with_backoff(backoff);
+    let mut measured = SensingPair::default();
+    let power_limit = Message::Fault(Fault {
+        node: NodeId::Fsm,
+        kind: FaultKind::PowerLimit,
+        detail: 31_000,
+        step: 50,
+    })
+    .encode()
+    .unwrap();
+    for k in 0..periods {
+        let HostAction::Send(frames) = host.next_action() else {
+            panic!("period {k}'s frames");
+        };
+        let reference = |k: u64, backoff: &PowerBackoff| {
+            let unscaled = trajectory.reference_rad(k as f64 * period_s);
+            SensingPair {
+                alpha: unscaled.alpha * backoff.scale_at(k),
+                beta: unscaled.beta * backoff.scale_at(k),
+            }
+        };
+        let command = by_hand.step(reference(k, &twin_backoff), measured);
+        assert_eq!(
+            Message::decode(&frames[0].frame().unwrap()).unwrap(),
+            Message::CoilCommand(CoilCommand::from_amps(k as u16, command)),
+            "period {k}"
+        );
+        assert!(matches!(
+            host.next_action(),
+            HostAction::AwaitReading { .. }
+        ));
+        if k == 50 {
+            assert_eq!(host.on_frame(power_limit, now()), Heard::Nothing);
+            twin_backoff.on_power_limit(k);
+        }
+        // A mirror that follows exactly, but for the wire's rounding to whole urad.
+        let reading = AngleReading::from_rad(k as u16, reference(k + 1, &twin_backoff));
+        measured = reading.rad();
+        let frame = Message::AngleReading(reading).encode().unwrap();
+        assert_eq!(host.on_frame(frame, now()), Heard::Reading(k));
+    }
+    assert!(
+        twin_backoff.scale_at(periods) < 0.9,
+        "the back-off acted: {}",
+        twin_backoff.scale_at(periods)
+    );
+    let (record, _) = host.finish();
+    let run = record.tracking.summary().whole_run;
+    assert_eq!(run.periods, periods);
+    for axis in [run.alpha, run.beta] {
+        assert!(axis.max_abs_urad <= 0.5, "{axis:?}");
+        assert!(axis.reference_peak_urad > 2000.0, "{axis:?}");
+    }
 }

@@ -227,7 +227,8 @@ pub struct HostLoop<'a> {
     /// Allowances used up waiting for the current reading.
     silent_tries: u32,
     /// The reference of a period, kept from its previous period's reading (which is recorded
-    /// against it) for its command: each is computed once.
+    /// against it) for its command: each is computed once. The back-off cannot change between
+    /// the two: a power-limit fault is taken only while a reading is awaited.
     next_reference: Option<(u64, SensingPair)>,
 }
 
@@ -365,7 +366,6 @@ impl<'a> HostLoop<'a> {
                     .any(|event| event.fault == Some(FaultKind::PowerLimit))
                 {
                     self.backoff.on_power_limit(k);
-                    self.next_reference = None;
                 }
                 match classified {
                     Err(error) => {
