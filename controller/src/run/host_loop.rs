@@ -575,6 +575,27 @@ mod tests {
     use super::*;
 
     #[test]
+    fn a_reading_is_recorded_against_the_reference_at_the_instant_it_was_taken() {
+        let trajectory = Trajectory::Lissajous {
+            alpha_hz: 52.0,
+            beta_hz: 27.0,
+            alpha_amplitude_rad: 0.01,
+            beta_amplitude_rad: 0.005,
+            relative_phase_rad: 0.0,
+        };
+        let period_s = 5e-5;
+        let mut record = LoopRecord::new(period_s, 100);
+        for k in 0..100 {
+            let at_reading = trajectory.reference_rad((k + 1) as f64 * period_s);
+            record.push_reading(&trajectory, k, at_reading);
+        }
+        let run = record.tracking.summary().whole_run;
+        assert_eq!(record.periods_done, 100);
+        assert_eq!((run.alpha.max_abs_urad, run.beta.max_abs_urad), (0.0, 0.0));
+        assert!(run.alpha.reference_peak_urad > 1000.0, "{run:?}");
+    }
+
+    #[test]
     fn saturation_in_the_frame_counts_none_of_the_lead_ins_and_none_before_the_frame() {
         // A scan stopped in its lead-in once reported 21 saturated periods for a frame of 0.
         let mut record = LoopRecord::new(5e-5, 300).with_lead_in(100);

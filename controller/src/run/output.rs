@@ -80,6 +80,16 @@ pub fn left_out(outputs: OutputsConfig) -> Vec<&'static str> {
         .collect()
 }
 
+/// The imaging's files `outputs` writes ([`IMAGING_OUTPUTS`] but those it leaves out).
+#[must_use]
+pub fn imaging_outputs(outputs: OutputsConfig) -> Vec<&'static str> {
+    let left_out = left_out(outputs);
+    IMAGING_OUTPUTS
+        .into_iter()
+        .filter(|file| !left_out.contains(file))
+        .collect()
+}
+
 /// Everything the loop produced, before imaging.
 #[derive(Debug)]
 pub struct RunData {
@@ -318,11 +328,7 @@ pub fn write(
     if pairing.with_distance > 0 {
         let unfinished = "the run ended while its points were imaged";
         let mut not_written = failed.clone();
-        let left_out = left_out(scenario.outputs);
-        for file in IMAGING_OUTPUTS
-            .iter()
-            .filter(|file| !left_out.contains(file))
-        {
+        for file in imaging_outputs(scenario.outputs) {
             not_written.add(file, unfinished.to_owned());
         }
         let (report, _) = report_with(None, Some(unfinished.to_owned()), &not_written);
@@ -640,7 +646,7 @@ fn write_tracking_plot(
 
 #[cfg(test)]
 mod left_out_tests {
-    use super::{OutputsConfig, left_out};
+    use super::{OutputsConfig, imaging_outputs, left_out};
 
     #[test]
     fn what_is_left_out_is_each_switched_off_group_in_order() {
@@ -661,6 +667,19 @@ mod left_out_tests {
             ]
         );
         assert_eq!(left_out(outputs(false, false)).len(), 7);
+    }
+
+    #[test]
+    fn the_imaging_writes_its_files_but_the_pictures_left_out() {
+        let outputs = |figures| OutputsConfig {
+            recordings: false,
+            figures,
+        };
+        assert_eq!(imaging_outputs(outputs(true)), super::IMAGING_OUTPUTS);
+        assert_eq!(
+            imaging_outputs(outputs(false)),
+            ["points.ply", "height_map.csv", "profiles.csv"]
+        );
     }
 }
 
