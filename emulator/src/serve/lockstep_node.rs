@@ -254,3 +254,77 @@ pub fn periods_per_heartbeat(period_s: f64, heartbeat_hz: f64) -> u64 {
         1
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn node() -> MirrorNode {
+        let scene = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../fixtures/scenes/protocol-only.json"
+        );
+        let (_, plant) = super::super::load_plant(std::path::Path::new(scene), None).unwrap();
+        MirrorNode::new(plant)
+    }
+
+    /// The messages a reply sends, and how many sensor samples.
+    fn sent(reply: NodeReply) -> (Vec<Message>, usize) {
+        let NodeReply::Send(sends) = reply else {
+            panic!("{reply:?}");
+        };
+        let mut messages = Vec::new();
+        let mut samples = 0;
+        for send in sends {
+            match send {
+                NodeSend::Frame(frame) => messages.push(frame.message().unwrap()),
+                NodeSend::Samples(period) => samples += period.len(),
+                NodeSend::Cycles(_) => panic!("no recorded cycles here"),
+            }
+        }
+        (messages, samples)
+    }
+
+    #[test]
+    fn a_step_is_answered_with_its_reading_its_samples_and_a_heartbeat_on_time() {
+        let mut mirror = node();
+        // 400 Hz at 20 kHz: a heartbeat every 50 periods.
+        let mut node = LockstepNode::new(&mut mirror, 400.0);
+        let step = |k: u32| Message::Step { step: k }.encode().unwrap();
+        let status = |k: u32, node_time_us: u32| {
+            Message::Status(Status {
+                node: NodeId::Fsm,
+                state: NodeState::Running,
+                step: k,
+                node_time_us,
+            })
+        };
+        let reading = |seq: u16| {
+            Message::AngleReading(AngleReading {
+                seq,
+                alpha_urad: 0,
+                beta_urad: 0,
+            })
+        };
+        assert_eq!(
+            sent(node.on_frame(step(0)).unwrap()),
+            (vec![reading(0), status(0, 0)], 1)
+        );
+        for k in 1..50 {
+            assert_eq!(
+                sent(node.on_frame(step(k)).unwrap()),
+                (vec![reading(k as u16)], 1)
+            );
+        }
+        assert_eq!(
+            sent(node.on_frame(step(50)).unwrap()),
+            (vec![reading(50), status(50, 2500)], 1)
+        );
+        // The same Step again: the same reading alone, nothing stepped.
+        assert_eq!(
+            sent(node.on_frame(step(50)).unwrap()),
+            (vec![reading(50)], 0)
+        );
+        assert_eq!(node.node().next_period(), 51);
+    }
+}

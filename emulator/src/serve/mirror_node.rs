@@ -298,6 +298,33 @@ mod tests {
     }
 
     #[test]
+    fn a_fault_goes_out_in_the_period_it_starts_and_not_while_it_lasts() {
+        let scene = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../fixtures/scenes/loop-power-fault.json"
+        );
+        let (_, plant) = super::super::load_plant(std::path::Path::new(scene), None).unwrap();
+        let mut node = MirrorNode::new(plant);
+        let beyond = ActuatorPair { a: 100.0, b: 0.0 };
+        let mut started = Vec::new();
+        // The plant applies a command one period after it came.
+        for seq in 0..4 {
+            node.on_command(seq, beyond);
+            started.push(node.step().unwrap().started_faults);
+        }
+        let kinds: Vec<Vec<FaultKind>> = started
+            .iter()
+            .map(|faults| faults.iter().map(|(kind, _)| *kind).collect())
+            .collect();
+        assert_eq!(
+            kinds,
+            [vec![], vec![FaultKind::OverCurrent], vec![], vec![]],
+            "{started:?}"
+        );
+        assert_eq!(node.counters().faults, 1);
+    }
+
+    #[test]
     fn the_largest_command_received_is_kept_late_ones_included() {
         let mut node = node();
         assert_eq!(node.counters().largest_command_a, 0.0);

@@ -606,7 +606,10 @@ mod tests {
         assert!(assembler.is_between_cycles());
         let bytes = encode_cycle(&[100, 7]);
         assembler.push(&bytes[..3], now, &mut cycles);
-        assert!(!assembler.is_between_cycles(), "the distance alone is half a cycle");
+        assert!(
+            !assembler.is_between_cycles(),
+            "the distance alone is half a cycle"
+        );
         assembler.push(&bytes[3..], now, &mut cycles);
         assert!(assembler.is_between_cycles());
         assert_eq!(cycles.len(), 1);
