@@ -132,7 +132,7 @@ impl LoopRecord {
         self.push_reading_against(reference, k, angles);
     }
 
-    /// Records reading `k` against `reference_rad`, the reference at loop time
+    /// Records reading `k` against `reference`, the reference at loop time
     /// `(k + 1) * period` as the loop follows it (scaled by the power back-off).
     pub fn push_reading_against(&mut self, reference: SensingPair, k: u64, angles: SensingPair) {
         if let Some(track) = &mut self.angles {
