@@ -257,16 +257,8 @@ pub fn periods_per_heartbeat(period_s: f64, heartbeat_hz: f64) -> u64 {
 
 #[cfg(test)]
 mod tests {
+    use super::super::mirror_node::tests::node;
     use super::*;
-
-    fn node() -> MirrorNode {
-        let scene = concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../fixtures/scenes/protocol-only.json"
-        );
-        let (_, plant) = super::super::load_plant(std::path::Path::new(scene), None).unwrap();
-        MirrorNode::new(plant)
-    }
 
     /// The messages a reply sends, and how many sensor samples.
     fn sent(reply: NodeReply) -> (Vec<Message>, usize) {

@@ -285,10 +285,11 @@ fn saturate_i32(value: f64) -> i32 {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
 
-    fn node() -> MirrorNode {
+    /// A node around the protocol-only scene (the mirror still, every sample the same).
+    pub(in crate::serve) fn node() -> MirrorNode {
         let scene = concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/../fixtures/scenes/protocol-only.json"

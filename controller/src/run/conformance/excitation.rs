@@ -1,10 +1,9 @@
 //! What the conformance drive does to the mirror: the coil currents of each period (a sine on
 //! each coil), and the verdict on the angles it moves (in range, and both axes swinging).
 
-use scanhil_protocol::plant_units::{ActuatorPair, FULL_RANGE_DEG, SensingPair};
+use scanhil_protocol::plant_units::{ActuatorPair, SensingPair};
 
-/// Margin on the mirror's range for the range check.
-const RANGE_MARGIN: f64 = 1.2;
+use crate::run::host_inbox::{plausible_angle_limit_rad, plausible_angles};
 /// The least peak-to-peak swing each axis must show under [`EXCITATION`], rad.
 const MIN_SWING_RAD: f64 = 1e-3;
 
@@ -87,19 +86,15 @@ impl AngleRange {
         }
     }
 
-    fn limit_rad() -> f64 {
-        FULL_RANGE_DEG.to_radians() * RANGE_MARGIN
-    }
-
+    /// Reading `k`: out of range when not finite or beyond the mirror's range with margin
+    /// (the host's own plausibility bound, [`plausible_angles`]).
     pub(super) fn add(&mut self, k: u64, angles: SensingPair) {
-        let limit_rad = Self::limit_rad();
-        let inside = |angle: f64| angle.is_finite() && angle.abs() <= limit_rad;
-        if self.out_of_range.is_none() && !(inside(angles.alpha) && inside(angles.beta)) {
+        if self.out_of_range.is_none() && !plausible_angles(angles) {
             self.out_of_range = Some(format!(
                 "period {k}: alpha {:.3} mrad, beta {:.3} mrad, beyond the mirror's +-{:.3} mrad",
                 angles.alpha * 1e3,
                 angles.beta * 1e3,
-                limit_rad * 1e3
+                plausible_angle_limit_rad() * 1e3
             ));
         }
         self.min_rad.alpha = self.min_rad.alpha.min(angles.alpha);
@@ -133,7 +128,7 @@ impl AngleRange {
         }
         Ok(format!(
             "all within +-{:.3} mrad; {swing}",
-            Self::limit_rad() * 1e3
+            plausible_angle_limit_rad() * 1e3
         ))
     }
 }

@@ -125,6 +125,12 @@ impl Verdicts<'_> {
         self.push(name, outcome, detail, time_s);
     }
 
+    /// [`Self::add`] of a verdict given as `Ok(detail)` or `Err(detail)`.
+    fn add_result(&mut self, name: &'static str, verdict: Result<String, String>, time_s: f64) {
+        let passed = verdict.is_ok();
+        self.add(name, passed, verdict.unwrap_or_else(|e| e), time_s);
+    }
+
     /// The verdict of a check of the timing phase, which always runs: kept when selected.
     fn add_if_selected(&mut self, name: &'static str, passed: bool, detail: String) {
         if self.selection.runs(name) {
@@ -134,8 +140,9 @@ impl Verdicts<'_> {
 
     /// [`Self::add_if_selected`] of a verdict given as `Ok(detail)` or `Err(detail)`.
     fn add_verdict(&mut self, name: &'static str, verdict: Result<String, String>) {
-        let passed = verdict.is_ok();
-        self.add_if_selected(name, passed, verdict.unwrap_or_else(|e| e));
+        if self.selection.runs(name) {
+            self.add_result(name, verdict, 0.0);
+        }
     }
 
     fn push(&mut self, name: &'static str, outcome: Outcome, detail: String, time_s: f64) {
@@ -328,12 +335,7 @@ pub async fn run_checks(
         DriveTiming::Realtime(readings) => {
             if selection.runs("readings_on_time") {
                 let on_time = readings.on_time();
-                verdicts.add(
-                    "readings_on_time",
-                    on_time.is_ok(),
-                    on_time.unwrap_or_else(|e| e),
-                    start.elapsed().as_secs_f64(),
-                );
+                verdicts.add_result("readings_on_time", on_time, start.elapsed().as_secs_f64());
             }
             verdicts.add_verdict("reading_rate", readings.rate());
             verdicts.add_verdict(
@@ -367,10 +369,9 @@ pub async fn run_checks(
     if slcan && verdicts.start("survives_garbage_slcan_lines") {
         let t0 = Instant::now();
         if let Some(survived) = survive_garbage_lines(&mut session).await {
-            verdicts.add(
+            verdicts.add_result(
                 "survives_garbage_slcan_lines",
-                survived.is_ok(),
-                survived.unwrap_or_else(|e| e),
+                survived,
                 t0.elapsed().as_secs_f64(),
             );
         }
@@ -396,10 +397,9 @@ pub async fn run_checks(
         {
             let t0 = Instant::now();
             let survived = session.while_fed(sensor::survive_bad_commands(link)).await;
-            verdicts.add(
+            verdicts.add_result(
                 "sensor_survives_bad_commands",
-                survived.is_ok(),
-                survived.unwrap_or_else(|e| e),
+                survived,
                 t0.elapsed().as_secs_f64(),
             );
         }
@@ -552,10 +552,9 @@ async fn survives_malformed_frames(session: &mut Session<'_>, verdicts: &mut Ver
             Err(error) => Err(format!("{sent}; then: {error}")),
         },
     };
-    verdicts.add(
+    verdicts.add_result(
         "survives_malformed_frames",
-        survived.is_ok(),
-        survived.unwrap_or_else(|e| e),
+        survived,
         t0.elapsed().as_secs_f64(),
     );
 }
