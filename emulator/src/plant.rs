@@ -232,12 +232,11 @@ impl OpticalChain {
             .into_iter()
             .map(|instant| {
                 let outcome = if sensor.exposure_s() > 0.0 {
-                    let outcomes: Vec<_> = sensor
-                        .exposure_instants(instant.t_s)
-                        .into_iter()
-                        .map(|t_s| self.optics.observe(angles_at(t_s)).outcome)
-                        .collect();
-                    Ild2300::exposed(&outcomes)
+                    Ild2300::exposed(
+                        sensor
+                            .exposure_instants(instant.t_s)
+                            .map(|t_s| self.optics.observe(angles_at(t_s)).outcome),
+                    )
                 } else {
                     self.optics.observe(angles_at(instant.t_s)).outcome
                 };

@@ -248,34 +248,31 @@ impl Ild2300 {
     /// The instants, in order, at which the optics are looked at for a cycle at `t_s`: the
     /// middles of [`EXPOSURE_POINTS`] equal slices of the exposure ending at `t_s`; `t_s` alone
     /// without exposure.
-    #[must_use]
-    pub fn exposure_instants(&self, t_s: f64) -> Vec<f64> {
+    pub fn exposure_instants(&self, t_s: f64) -> impl Iterator<Item = f64> + use<> {
         let exposure_s = self.exposure_s();
-        if exposure_s <= 0.0 {
-            return vec![t_s];
-        }
-        let slice_s = exposure_s / EXPOSURE_POINTS as f64;
-        (0..EXPOSURE_POINTS)
-            .map(|j| t_s - exposure_s + (j as f64 + 0.5) * slice_s)
-            .collect()
+        let (points, slice_s) = if exposure_s > 0.0 {
+            (EXPOSURE_POINTS, exposure_s / EXPOSURE_POINTS as f64)
+        } else {
+            (1, 0.0)
+        };
+        (0..points).map(move |j| t_s - exposure_s + (j as f64 + 0.5) * slice_s)
     }
 
     /// What the receiver made of the optics over one exposure: the average of the distances
     /// seen (the part of the path the spot was shaded or off the surface adds no light), or,
     /// when none was, the outcome at the exposure's end.
     #[must_use]
-    pub fn exposed(outcomes: &[OpticalOutcome]) -> OpticalOutcome {
-        let (sum_mm, seen) = outcomes
-            .iter()
-            .filter_map(|outcome| match outcome {
-                OpticalOutcome::Distance { z_meas_mm } => Some(*z_meas_mm),
-                OpticalOutcome::Miss | OpticalOutcome::Shaded(_) => None,
-            })
-            .fold((0.0, 0u32), |(sum_mm, seen), z_mm| {
-                (sum_mm + z_mm, seen + 1)
-            });
+    pub fn exposed(outcomes: impl IntoIterator<Item = OpticalOutcome>) -> OpticalOutcome {
+        let (mut sum_mm, mut seen, mut last) = (0.0, 0u32, OpticalOutcome::Miss);
+        for outcome in outcomes {
+            if let OpticalOutcome::Distance { z_meas_mm } = outcome {
+                sum_mm += z_meas_mm;
+                seen += 1;
+            }
+            last = outcome;
+        }
         if seen == 0 {
-            return outcomes.last().copied().unwrap_or(OpticalOutcome::Miss);
+            return last;
         }
         OpticalOutcome::Distance {
             z_meas_mm: sum_mm / f64::from(seen),
@@ -481,7 +478,7 @@ mod tests {
     #[test]
     fn an_exposure_looks_at_the_middles_of_its_slices_and_averages_what_it_sees() {
         let instant = sensor(SensorConfig::default(), false);
-        assert_eq!(instant.exposure_instants(1.0), [1.0]);
+        assert_eq!(instant.exposure_instants(1.0).collect::<Vec<_>>(), [1.0]);
         let exposed = sensor(
             SensorConfig {
                 exposure_us: 40.0,
@@ -490,7 +487,7 @@ mod tests {
             false,
         );
         assert!((exposed.exposure_s() - 40e-6).abs() < 1e-18);
-        let instants = exposed.exposure_instants(1e-3);
+        let instants: Vec<f64> = exposed.exposure_instants(1e-3).collect();
         let expected_us = [964.0, 972.0, 980.0, 988.0, 996.0];
         assert_eq!(instants.len(), EXPOSURE_POINTS);
         for (t_s, expected) in instants.iter().zip(expected_us) {
@@ -498,7 +495,7 @@ mod tests {
         }
         let shaded = OpticalOutcome::Shaded(ShadeReason::ReflectionPathBlocked);
         assert_eq!(
-            Ild2300::exposed(&[
+            Ild2300::exposed([
                 distance(100.0),
                 shaded,
                 distance(103.0),
@@ -507,11 +504,11 @@ mod tests {
             distance(101.5)
         );
         assert_eq!(
-            Ild2300::exposed(&[distance(100.0), distance(101.0), distance(105.0)]),
+            Ild2300::exposed([distance(100.0), distance(101.0), distance(105.0)]),
             distance(102.0)
         );
-        assert_eq!(Ild2300::exposed(&[OpticalOutcome::Miss, shaded]), shaded);
-        assert_eq!(Ild2300::exposed(&[]), OpticalOutcome::Miss);
+        assert_eq!(Ild2300::exposed([OpticalOutcome::Miss, shaded]), shaded);
+        assert_eq!(Ild2300::exposed([]), OpticalOutcome::Miss);
     }
 
     #[test]
