@@ -12,8 +12,10 @@ use imaging_support::{
 use reconstruct_command::{reconstruct_succeeds, scanhil_reconstruct};
 use scanhil_controller::imaging::feature::{FeatureParams, Region};
 use scanhil_controller::imaging::pipeline::{
-    ImagingError, ImagingOptions, MAX_PROGRESSIVE_STEPS, image_points, image_samples,
+    Figures, HEIGHT_MAP_PNG, ImagingError, ImagingOptions, MAX_PROGRESSIVE_STEPS, PROFILES_SVG,
+    PROGRESSIVE_SVG, SNAPSHOTS_PNG, image_points, image_samples, write_outputs,
 };
+use scanhil_controller::imaging::ply::PlyEncoding;
 use scanhil_controller::imaging::ply::read_ply_file;
 use scanhil_controller::imaging::profiles::{Profiles, Section, sections};
 use scanhil_controller::imaging::progressive::{ScanFrame, simulate_samples};
@@ -724,4 +726,44 @@ fn reconstruct_takes_negative_rectangles_and_refuses_feature_settings_that_canno
             "refused before writing"
         );
     }
+}
+
+#[test]
+fn write_outputs_draws_the_pictures_or_leaves_them_out_and_writes_the_rest_either_way() {
+    let options = plane_and_feature();
+    let mut imaging = image_samples(&stud_samples(lissajous, 10_000.0), &options).unwrap();
+    imaging.score_progressive(
+        None,
+        ScanFrame::spanning(imaging.reconstruction.cloud.points.iter().map(|p| p.t_s)),
+    );
+    let pictures = [HEIGHT_MAP_PNG, PROGRESSIVE_SVG, SNAPSHOTS_PNG, PROFILES_SVG];
+    let written = |figures| {
+        let dir = tempfile::tempdir().unwrap();
+        let report = write_outputs(
+            &imaging,
+            dir.path(),
+            PlyEncoding::BinaryLittleEndian,
+            &Default::default(),
+            figures,
+        )
+        .unwrap();
+        let drawn: Vec<bool> = pictures
+            .iter()
+            .map(|f| dir.path().join(f).exists())
+            .collect();
+        let rest = ["points.ply", "height_map.csv", "profiles.csv"]
+            .iter()
+            .all(|f| dir.path().join(f).exists());
+        (drawn, rest, report.map_range_mm.is_some(), report.snapshots)
+    };
+    let (drawn, rest, range, snapshots) = written(Figures::Drawn);
+    assert_eq!(drawn, [true; 4]);
+    assert!(rest && range);
+    let (left_out, rest_left, no_range, same_snapshots) = written(Figures::LeftOut);
+    assert_eq!(left_out, [false; 4]);
+    assert!(rest_left && !no_range);
+    assert_eq!(
+        same_snapshots, snapshots,
+        "the report's figures are computed either way"
+    );
 }
