@@ -18,8 +18,6 @@ use scanhil_controller::run::{LinkPlan, finish_emulator, open_links};
 use scanhil_protocol::loop_limits;
 use scanhil_protocol::validation::Invalid;
 
-/// The lockstep answer allowance without `--answer-allowance-s`, s.
-const DEFAULT_ANSWER_ALLOWANCE_S: f64 = 0.01;
 /// How long a real-time emulated node started here may run, s: the checks take seconds and
 /// end its run (the zero command and the host's end, or its own watchdog).
 const EMULATED_NODE_MAX_S: f64 = 600.0;
@@ -80,9 +78,10 @@ pub struct Args {
 /// Values out of range or check names unknown (before any link opens); links that do not
 /// open; an emulated node without a scene; the JUnit file not writable.
 pub fn run(args: Args) -> anyhow::Result<ExitCode> {
+    // Without the flag, a scenario's default.
     let answer_allowance_s = args
         .answer_allowance_s
-        .unwrap_or(DEFAULT_ANSWER_ALLOWANCE_S);
+        .unwrap_or(TimingConfig::default().lockstep_answer_allowance_s);
     loop_limits::CONTROL_RATE_HZ
         .check("rate_hz", args.rate_hz)
         .and_then(|()| {
