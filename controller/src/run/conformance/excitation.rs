@@ -175,6 +175,17 @@ mod tests {
             beta: 0.0,
         });
         assert!(one_axis.is_err_and(|why| why.contains("beta 0.000 mrad")));
+        let alpha_frozen = verdict(|k| SensingPair {
+            alpha: 0.0,
+            beta: swing(k),
+        });
+        assert!(alpha_frozen.is_err_and(|why| why.contains("alpha swung 0.000 mrad")));
+        // A swing of exactly the least one passes.
+        let least = verdict(|k| SensingPair {
+            alpha: if k == 0 { MIN_SWING_RAD } else { 0.0 },
+            beta: if k == 1 { MIN_SWING_RAD } else { 0.0 },
+        });
+        assert!(least.is_ok(), "{least:?}");
         let beyond = verdict(|k| SensingPair {
             alpha: if k == 42 { 0.05 } else { swing(k) },
             beta: swing(k),

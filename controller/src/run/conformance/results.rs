@@ -135,3 +135,76 @@ fn escape(text: &str) -> String {
         .replace('>', "&gt;")
         .replace('"', "&quot;")
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn result(name: &'static str, outcome: Outcome, detail: &str) -> CheckResult {
+        CheckResult {
+            name,
+            node: "fsm",
+            outcome,
+            detail: detail.to_owned(),
+            time_s: 0.25,
+        }
+    }
+
+    fn results() -> Vec<CheckResult> {
+        vec![
+            result("status_frames", Outcome::Passed, "3 status frames"),
+            result(
+                "answers_in_time",
+                Outcome::Failed,
+                "period 4: <late> & \"slow\"",
+            ),
+            result(
+                "over_current_fault",
+                Outcome::Skipped,
+                "needs --destructive",
+            ),
+        ]
+    }
+
+    #[test]
+    fn each_outcome_is_what_it_says() {
+        let [passed, failed, skipped] = &results()[..] else {
+            unreachable!()
+        };
+        assert!(passed.passed() && !passed.failed());
+        assert!(failed.failed() && !failed.passed());
+        assert!(!skipped.passed() && !skipped.failed());
+    }
+
+    #[test]
+    fn the_table_has_a_row_per_check_the_counts_and_a_bench_hint_per_failure() {
+        let text = table(&results());
+        let lines: Vec<&str> = text.lines().collect();
+        assert!(lines[1].starts_with("fsm    status_frames") && lines[1].contains(" PASS "));
+        assert!(lines[2].contains(" FAIL ") && lines[2].ends_with("period 4: <late> & \"slow\""));
+        assert!(lines[3].contains(" SKIP "));
+        assert_eq!(lines[4], "3 checks, 1 passed, 1 failed, 1 skipped");
+        assert_eq!(lines.len(), 6, "{text}");
+        assert!(
+            lines[5].starts_with("on the bench, answers_in_time: look at "),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn junit_counts_failures_and_skips_and_escapes_what_was_seen() {
+        let xml = junit_xml(&results());
+        assert!(
+            xml.contains("tests=\"3\" failures=\"1\" errors=\"0\" skipped=\"1\" time=\"0.750000\""),
+            "{xml}"
+        );
+        assert!(xml.contains(
+            "name=\"status_frames\" time=\"0.250000\"><system-out>3 status frames</system-out>"
+        ));
+        assert!(
+            xml.contains("<failure message=\"period 4: &lt;late&gt; &amp; &quot;slow&quot;\"/>")
+        );
+        assert!(xml.contains("<skipped message=\"needs --destructive\"/>"));
+        assert!(xml.ends_with("  </testsuite>\n</testsuites>\n"));
+    }
+}
