@@ -515,3 +515,36 @@ fn a_conformance_run_interrupted_keeps_its_results_and_says_it_ended_early() {
         assert!(!written.contains("link_timeout_fault"), "{written}");
     }
 }
+
+/// The emulator conformance starts gets the watchdog and answer allowance conformance was
+/// given: its LinkTimeout comes after their product of silence, not the defaults'.
+#[test]
+fn an_emulated_node_keeps_the_watchdog_conformance_was_given() {
+    let output = run_scanhil(&[
+        "conformance",
+        "--fsm",
+        "pty",
+        "--scene",
+        &fixture("scenes/duplo-2x4-130mm.json"),
+        "--answer-allowance-s",
+        "0.02",
+        "--watchdog-periods",
+        "60",
+        "--check",
+        "link_timeout_fault",
+    ]);
+    assert_success(&output, "scanhil conformance --answer-allowance-s 0.02");
+    let table = String::from_utf8_lossy(&output.stdout);
+    let row = table
+        .lines()
+        .find(|line| line.contains("link_timeout_fault"))
+        .unwrap_or_else(|| panic!("no row in:\n{table}"));
+    // "LinkTimeout fault after 1.21s of silence": 60 periods of 20 ms, not 50 of 10 ms.
+    let silence_s: f64 = row
+        .split("after ")
+        .nth(1)
+        .and_then(|rest| rest.split("s of silence").next())
+        .and_then(|seconds| seconds.parse().ok())
+        .unwrap_or_else(|| panic!("no silence in {row}"));
+    assert!((1.2..2.4).contains(&silence_s), "{row}");
+}
