@@ -20,17 +20,24 @@
 //! is the one the ILD reads from the intensity-weighted centroid of the two images
 //! ([`multipath`] has the model and its assumptions). Absent (the default), the optics are
 //! exactly those without it.
+//!
+//! With a [`ReceiverModel`] (the scene's parts `receiver_intensity` and `speckle`,
+//! [`receiver`]), each seen sample also carries its intensity at the receiver, the spot's
+//! distance is the intensity-weighted mean of its samples, and the spot's centroid moves with
+//! the surface's speckle. Without one every seen sample counts alike, with intensity 1.
 
 pub mod multipath;
+pub mod receiver;
 
 use nalgebra::{Point3, Vector3};
-use scanhil_geometry::{BeamRay, GeometryModel, Scanner, ScannerSetup, SetupError};
+use scanhil_geometry::{BeamRay, GeometryModel, ReceiverPath, Scanner, ScannerSetup, SetupError};
 use scanhil_protocol::plant_units::SensingPair;
 use serde::{Deserialize, Serialize};
 
 use scanhil_scene::surface::Surface;
 
 use multipath::{MultipathConfig, SecondBounce, View};
+use receiver::{Speckle, SurfaceFinish};
 
 /// Longest beam stretch searched for a surface, mm (far beyond the sensor's range).
 const BEAM_SEARCH_LENGTH_MM: f64 = 1.0e4;
@@ -41,8 +48,12 @@ fn default_max_angle_deg() -> f64 {
 fn yes() -> bool {
     true
 }
+/// The paper's laser spot diameter, mm (the spot's default, and the speckle's correlation
+/// length without a `spot` section).
+pub const DEFAULT_SPOT_DIAMETER_MM: f64 = 0.13;
+
 fn default_spot_diameter_mm() -> f64 {
-    0.13
+    DEFAULT_SPOT_DIAMETER_MM
 }
 fn default_spot_samples() -> usize {
     7
@@ -155,6 +166,9 @@ pub enum OpticalOutcome {
     Distance {
         /// Sensor reference to the spot along the beam, mm.
         z_meas_mm: f64,
+        /// The light reaching the receiver, relative to a white matte surface facing it at
+        /// mid-range ([`receiver::intensity`]); 1 when the intensity is not modelled.
+        intensity: f64,
     },
     /// The beam meets no surface (or leaves no usable mirror path).
     Miss,
@@ -188,6 +202,17 @@ pub struct Optics {
     spot_radius_mm: f64,
     /// The second bounce, when the scene asks for it.
     multipath: Option<SecondBounce>,
+    /// The receiver's intensity and speckle, when the scene lists them.
+    receiver: ReceiverModel,
+}
+
+/// What the receiver adds to the optics: the parts `receiver_intensity` and `speckle`.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ReceiverModel {
+    /// The surface's finish, to weigh each seen sample by its intensity (`None`: all alike).
+    pub intensity: Option<SurfaceFinish>,
+    /// The surface's speckle (`None`: none).
+    pub speckle: Option<Speckle>,
 }
 
 impl Optics {
@@ -249,7 +274,16 @@ impl Optics {
             spot_pattern,
             spot_radius_mm,
             multipath,
+            receiver: ReceiverModel::default(),
         })
+    }
+
+    /// The same optics with the receiver's intensity and speckle (the plant's parts
+    /// `receiver_intensity` and `speckle`).
+    #[must_use]
+    pub fn with_receiver(mut self, receiver: ReceiverModel) -> Optics {
+        self.receiver = receiver;
+        self
     }
 
     /// The same optics with shading switched on or off (the plant's `shading` part).
@@ -314,7 +348,8 @@ impl Optics {
         let true_height_mm = self.surface.height_at(center.point_mm.x, center.point_mm.y);
         // Spot samples: the centre only, or parallel rays across the footprint.
         let (across_1, across_2) = perpendicular_axes(&unit);
-        let mut sum_mm = 0.0;
+        // Intensity-weighted and plain sums of the seen samples' distances.
+        let (mut weighted_mm, mut sum_intensity, mut plain_mm) = (0.0, 0.0, 0.0);
         let mut count = 0usize;
         let mut first_shade = None;
         for &[a, b] in &self.spot_pattern {
@@ -332,7 +367,7 @@ impl Optics {
             };
             let Some(hit) = hit else { continue };
             match self.shade(alpha, beta, &unit, &hit) {
-                None => {
+                Ok(path) => {
                     let t_mm = match &self.multipath {
                         None => hit.t_mm,
                         Some(bounce) => {
@@ -349,10 +384,27 @@ impl Optics {
                                 .unwrap_or(hit.t_mm)
                         }
                     };
-                    sum_mm += beam.z_meas_at(t_mm / length);
+                    let z_mm = beam.z_meas_at(t_mm / length);
+                    let intensity = match &self.receiver.intensity {
+                        None => 1.0,
+                        Some(finish) => path
+                            .or_else(|| self.scanner.receiver_path(alpha, beta, &hit.point_mm))
+                            .map_or(0.0, |path| {
+                                receiver::intensity(
+                                    finish,
+                                    &hit.normal,
+                                    &-unit,
+                                    &path.direction,
+                                    z_mm,
+                                )
+                            }),
+                    };
+                    weighted_mm += intensity * z_mm;
+                    sum_intensity += intensity;
+                    plain_mm += z_mm;
                     count += 1;
                 }
-                Some(reason) => {
+                Err(reason) => {
                     first_shade.get_or_insert(reason);
                 }
             }
@@ -360,9 +412,19 @@ impl Optics {
         let outcome = match (count, first_shade) {
             (0, Some(reason)) => OpticalOutcome::Shaded(reason),
             (0, None) => OpticalOutcome::Miss,
-            _ => OpticalOutcome::Distance {
-                z_meas_mm: sum_mm / count as f64,
-            },
+            _ => {
+                // Samples that send no light still place the spot when none sends any (the
+                // receiver then calls it too dark).
+                let z_mm = if sum_intensity > 0.0 {
+                    weighted_mm / sum_intensity
+                } else {
+                    plain_mm / count as f64
+                };
+                OpticalOutcome::Distance {
+                    z_meas_mm: z_mm + self.speckle_mm(alpha, beta, &unit, &center, z_mm),
+                    intensity: sum_intensity / self.spot_pattern.len() as f64,
+                }
+            }
         };
         OpticalReading {
             beam,
@@ -372,29 +434,58 @@ impl Optics {
         }
     }
 
-    /// Why a hit gives no peak, or `None` if it does (always `None` with shading off).
+    /// Why a hit gives no peak, or, when it does, the path to the receiver if the rules
+    /// looked at it (never with shading off).
     fn shade(
         &self,
         d_alpha: f64,
         d_beta: f64,
         unit_beam: &Vector3<f64>,
         hit: &scanhil_scene::surface::Hit,
-    ) -> Option<ShadeReason> {
+    ) -> Result<Option<ReceiverPath>, ShadeReason> {
         if !self.shading {
-            return None;
+            return Ok(None);
         }
         if -unit_beam.dot(&hit.normal) < self.cos_max_incidence {
-            return Some(ShadeReason::GrazingIllumination);
+            return Err(ShadeReason::GrazingIllumination);
         }
         let Some(path) = self.scanner.receiver_path(d_alpha, d_beta, &hit.point_mm) else {
-            return Some(ShadeReason::NoReceiverPath);
+            return Err(ShadeReason::NoReceiverPath);
         };
         if path.direction.dot(&hit.normal) < self.cos_max_viewing {
-            return Some(ShadeReason::ReceiverFacesAway);
+            return Err(ShadeReason::ReceiverFacesAway);
         }
-        self.surface
+        match self
+            .surface
             .first_hit(&hit.point_mm, &path.direction, path.length_mm)
-            .map(|_| ShadeReason::ReflectionPathBlocked)
+        {
+            Some(_) => Err(ShadeReason::ReflectionPathBlocked),
+            None => Ok(Some(path)),
+        }
+    }
+
+    /// The speckle's centroid error for the spot centred on `center`, seen at `z_mm`, mm (0
+    /// without speckle, or without a path to the receiver).
+    fn speckle_mm(
+        &self,
+        d_alpha: f64,
+        d_beta: f64,
+        unit_beam: &Vector3<f64>,
+        center: &scanhil_scene::surface::Hit,
+        z_mm: f64,
+    ) -> f64 {
+        let Some(speckle) = &self.receiver.speckle else {
+            return 0.0;
+        };
+        let Some(path) = self
+            .scanner
+            .receiver_path(d_alpha, d_beta, &center.point_mm)
+        else {
+            return 0.0;
+        };
+        let sin_triangulation = unit_beam.cross(&path.direction).norm();
+        let cos_incidence = (-unit_beam.dot(&center.normal)).clamp(0.0, 1.0);
+        speckle.error_mm(&center.point_mm, z_mm, sin_triangulation, cos_incidence)
     }
 }
 
@@ -449,7 +540,7 @@ mod tests {
 
     fn z_meas(reading: &OpticalReading) -> f64 {
         match reading.outcome {
-            OpticalOutcome::Distance { z_meas_mm } => z_meas_mm,
+            OpticalOutcome::Distance { z_meas_mm, .. } => z_meas_mm,
             other => panic!("expected a distance, got {other:?}"),
         }
     }
@@ -505,7 +596,7 @@ mod tests {
             let a = -1.5 + 3.0 * f64::from(k) / 300.0;
             let r = o.observe(angles(a, 0.0));
             match r.outcome {
-                OpticalOutcome::Distance { z_meas_mm } => {
+                OpticalOutcome::Distance { z_meas_mm, .. } => {
                     // Any distance reported is the true one: reconstruction lands on the surface.
                     let p = o.scanner().point(a.to_radians(), 0.0, z_meas_mm);
                     let truth = surface.height_at(p.x, p.y).unwrap();
@@ -610,6 +701,116 @@ mod tests {
     }
 
     #[test]
+    fn with_receiver_intensity_a_spot_carries_its_light_and_weighs_its_samples_by_it() {
+        let plane = r#"{"kind": "plane", "distance_mm": 130.0}"#;
+        let finish = SurfaceFinish {
+            reflectance: 0.5,
+            ..SurfaceFinish::default()
+        };
+        let model = ReceiverModel {
+            intensity: Some(finish),
+            speckle: None,
+        };
+        let point = optics(plane, OpticsConfig::default()).with_receiver(model);
+        for (a, b) in [(0.0, 0.0), (1.2, -0.8)] {
+            let r = point.observe(angles(a, b));
+            let OpticalOutcome::Distance {
+                z_meas_mm,
+                intensity,
+            } = r.outcome
+            else {
+                panic!("{r:?}")
+            };
+            let path = point
+                .scanner()
+                .receiver_path(a.to_radians(), b.to_radians(), &r.spot_mm.unwrap())
+                .unwrap();
+            // Matte: reflectance cos(view) (L_ref / L)^2, the plane's normal straight up.
+            let expected = 0.5 * path.direction.z * (120.0 / z_meas_mm).powi(2);
+            assert!(
+                (intensity - expected).abs() < 1e-12,
+                "{intensity} {expected}"
+            );
+            // The distance is the one without the receiver model (one sample).
+            let plain = optics(plane, OpticsConfig::default()).observe(angles(a, b));
+            assert_eq!(z_meas(&plain), z_meas_mm);
+        }
+        // A spot across a step's two levels (its wall samples grazing, so shaded): its
+        // distance leans to the brighter, nearer level, against the plain mean of its samples.
+        let step = r#"{"kind": "step", "distance_mm": 126.0, "height_mm": -4.0, "axis": "y", "edge_mm": -13.0}"#;
+        let spot = OpticsConfig {
+            spot: Some(SpotConfig {
+                diameter_mm: 2.0,
+                samples: 16,
+            }),
+            ..OpticsConfig::default()
+        };
+        let plain = optics(step, spot.clone());
+        let weighted = optics(step, spot).with_receiver(model);
+        // Across the edge the spot's mean is between the levels, 1 to 3 mm from its centre's.
+        let centre = optics(step, OpticsConfig::default());
+        let edge_alpha = (0..=400)
+            .map(|k| -1.5 + 3.0 * f64::from(k) / 400.0)
+            .find(|&a| {
+                let spread = (z_meas(&plain.observe(angles(a, 0.0)))
+                    - z_meas(&centre.observe(angles(a, 0.0))))
+                .abs();
+                (1.0..3.0).contains(&spread)
+            })
+            .expect("an alpha with the spot across the edge");
+        let (z_plain, z_weighted) = (
+            z_meas(&plain.observe(angles(edge_alpha, 0.0))),
+            z_meas(&weighted.observe(angles(edge_alpha, 0.0))),
+        );
+        assert!(z_weighted < z_plain, "{z_weighted} {z_plain}");
+        assert!(z_plain - z_weighted < 1.0, "{z_weighted} {z_plain}");
+    }
+
+    #[test]
+    fn with_speckle_a_spot_moves_by_the_surface_s_fixed_pattern_at_its_rms() {
+        let plane = r#"{"kind": "plane", "distance_mm": 130.0}"#;
+        let finish = SurfaceFinish {
+            roughness_um: 2.0,
+            ..SurfaceFinish::default()
+        };
+        let speckle = Speckle::new(
+            &finish,
+            &receiver::ReceiverOptics {
+                wavelength_nm: 670.0,
+                aperture_mm: 12.0,
+            },
+            0.13,
+            5,
+        );
+        let plain = optics(plane, OpticsConfig::default());
+        let speckled = plain.clone().with_receiver(ReceiverModel {
+            intensity: None,
+            speckle: Some(speckle),
+        });
+        let (mut sum_sq, mut n) = (0.0, 0.0);
+        for i in 0..40 {
+            for j in 0..40 {
+                let (a, b) = (-1.0 + 0.05 * f64::from(i), -1.0 + 0.05 * f64::from(j));
+                let r = speckled.observe(angles(a, b));
+                let error = z_meas(&r) - z_meas(&plain.observe(angles(a, b)));
+                assert_eq!(z_meas(&speckled.observe(angles(a, b))), z_meas(&r));
+                let path = plain
+                    .scanner()
+                    .receiver_path(a.to_radians(), b.to_radians(), &r.spot_mm.unwrap())
+                    .unwrap();
+                let sin_theta = r.beam.direction.normalize().cross(&path.direction).norm();
+                let cos_inc = -r.beam.direction.normalize().z;
+                let rms = speckle.rms_mm(z_meas(&r), sin_theta, cos_inc);
+                sum_sq += (error / rms).powi(2);
+                n += 1.0;
+            }
+        }
+        // 1600 spots 0.05 deg apart (several spot diameters on the plane): unit rms.
+        let rms = (sum_sq / n).sqrt();
+        assert!((rms - 1.0).abs() < 0.1, "{rms}");
+    }
+
+    #[test]
     fn config_defaults_and_errors() {
         let c: OpticsConfig = serde_json::from_str("{}").unwrap();
         assert_eq!(c, OpticsConfig::default());
@@ -666,7 +867,7 @@ mod tests {
             // Any finite angle, and the same scaled into the mirror's range.
             for scale in [1.0, 1e-6] {
                 let r = o.observe(SensingPair { alpha: alpha * scale, beta: beta * scale });
-                if let OpticalOutcome::Distance { z_meas_mm } = r.outcome {
+                if let OpticalOutcome::Distance { z_meas_mm, .. } = r.outcome {
                     prop_assert!(z_meas_mm.is_finite());
                     prop_assert!(r.spot_mm.unwrap().coords.iter().all(|v| v.is_finite()));
                 }

@@ -190,15 +190,16 @@ impl OpticalChain {
                 scene: name(),
                 cause,
             })?
-            .with_shading(scene.has(Part::Shading));
+            .with_shading(scene.has(Part::Shading))
+            .with_receiver(scene.receiver_model());
         let sensor = if scene.has(Part::Sensor) {
             let config = scene.sensor.unwrap_or_default();
-            let sensor = Ild2300::new(&config, scene.seed, scene.has(Part::SensorNoise)).map_err(
-                |cause| PlantError::Sensor {
+            let sensor = Ild2300::new(&config, scene.seed, scene.has(Part::SensorNoise))
+                .map_err(|cause| PlantError::Sensor {
                     scene: name(),
                     cause,
-                },
-            )?;
+                })?
+                .with_intensity_limits(scene.has(Part::ReceiverIntensity));
             Some(sensor)
         } else {
             None

@@ -19,7 +19,8 @@ use crate::cross_talk::CrossTalkConfig;
 use crate::current_loop::CurrentLoopConfig;
 use crate::integrator::IntegratorConfig;
 use crate::mirror::MirrorConfig;
-use crate::optics::OpticsConfig;
+use crate::optics::receiver::{ReceiverOptics, Speckle, SurfaceFinish};
+use crate::optics::{OpticsConfig, ReceiverModel};
 use crate::power::PowerLimitConfig;
 use crate::sensor::SensorConfig;
 use scanhil_scene::json_file::{self, JsonFileError};
@@ -62,11 +63,16 @@ pub enum Part {
     Shading,
     /// The ILD 2300 triangulation sensor on its own clock.
     Sensor,
+    /// The light each spot sends the receiver (`surface_finish`): intensity-weighted spots
+    /// and exposures, too dark and saturated spots refused.
+    ReceiverIntensity,
+    /// The surface's speckle moving the spot image's centroid (`surface_finish.roughness_um`).
+    Speckle,
 }
 
 impl Part {
     /// Every part, in the order runs report them.
-    pub const ALL: [Part; 14] = [
+    pub const ALL: [Part; 16] = [
         Part::Axes,
         Part::SecondMode,
         Part::CrossTalk,
@@ -81,6 +87,8 @@ impl Part {
         Part::Optics,
         Part::Shading,
         Part::Sensor,
+        Part::ReceiverIntensity,
+        Part::Speckle,
     ];
 
     /// The name used in scene files and output.
@@ -101,6 +109,8 @@ impl Part {
             Part::Optics => "optics",
             Part::Shading => "shading",
             Part::Sensor => "sensor",
+            Part::ReceiverIntensity => "receiver_intensity",
+            Part::Speckle => "speckle",
         }
     }
 
@@ -128,7 +138,7 @@ impl Part {
             Part::CrossTalkPickup => Some(Part::CrossTalk),
             Part::CurrentLoop => Some(Part::Amplifier),
             Part::Shading | Part::Sensor => Some(Part::Optics),
-            Part::SensorNoise => Some(Part::Sensor),
+            Part::SensorNoise | Part::ReceiverIntensity | Part::Speckle => Some(Part::Sensor),
             _ => None,
         }
     }
@@ -188,6 +198,9 @@ pub struct Scene {
     /// The triangulation sensor (part `sensor`; ILD 2300-100 defaults when absent).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub sensor: Option<SensorConfig>,
+    /// How the surface scatters the laser (parts `receiver_intensity` and `speckle`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub surface_finish: Option<SurfaceFinish>,
     /// The directory of the file the scene came from (not part of the JSON).
     #[serde(skip)]
     base_dir: Option<PathBuf>,
@@ -277,6 +290,32 @@ impl Scene {
             .unwrap_or_else(|| crate::power::coil_resistance_ohm(&self.mirror))
     }
 
+    /// What the receiver adds to the optics: the finish's intensities with
+    /// `receiver_intensity`, its speckle with `speckle` (pattern drawn from the scene's seed,
+    /// decorrelating over the spot's diameter).
+    #[must_use]
+    pub fn receiver_model(&self) -> ReceiverModel {
+        let finish = self.surface_finish.unwrap_or_default();
+        let sensor = self.sensor.unwrap_or_default();
+        let spot_diameter_mm = self
+            .optics
+            .as_ref()
+            .and_then(|optics| optics.spot)
+            .map_or(crate::optics::DEFAULT_SPOT_DIAMETER_MM, |spot| {
+                spot.diameter_mm
+            });
+        let receiver = ReceiverOptics {
+            wavelength_nm: sensor.wavelength_nm,
+            aperture_mm: sensor.receiver_aperture_mm,
+        };
+        ReceiverModel {
+            intensity: self.has(Part::ReceiverIntensity).then_some(finish),
+            speckle: self
+                .has(Part::Speckle)
+                .then(|| Speckle::new(&finish, &receiver, spot_diameter_mm, self.seed)),
+        }
+    }
+
     /// The active parts in the canonical order of [`Part::ALL`].
     #[must_use]
     pub fn active_parts(&self) -> Vec<Part> {
@@ -344,6 +383,9 @@ impl Scene {
         .any(|part| self.has(*part))
         {
             self.angle_sensor.validate()?;
+        }
+        if self.has(Part::ReceiverIntensity) || self.has(Part::Speckle) {
+            self.surface_finish.unwrap_or_default().validate()?;
         }
         Ok(())
     }

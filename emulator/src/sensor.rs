@@ -11,6 +11,15 @@
 //! - Clock: sample k is taken at control time `clock_offset_s + k / (rate (1 + drift))`; the
 //!   plant asks which instants fall in a control period ([`Ild2300::sample_instants`]).
 //! - Counter: 18 bits, `(counter_start + k) mod 2^18`, as the sensor's `OUTADD_RS422` counter.
+//! - Exposure (`exposure_us`): the optics looked at over the exposure, their distances averaged
+//!   weighted by each look's intensity at the receiver (all alike unless the scene lists
+//!   `receiver_intensity`).
+//! - Receiver limits (part `receiver_intensity`): a spot darker than `intensity_dark_below`
+//!   gives [`IldError::NoPeak`] (the manual's "no peak available"), one brighter than
+//!   `intensity_saturated_above` [`IldError::PeakTooWide`] (a saturated line detector clips
+//!   the peak, which widens it: our reading, the manual names no saturation code). Intensities
+//!   are relative to a white matte surface facing the receiver at mid-range
+//!   ([`crate::optics::receiver`]).
 
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
@@ -41,6 +50,30 @@ fn default_noise() -> f64 {
 fn default_range() -> MeasuringRange {
     MeasuringRange::ILD2300_100
 }
+fn default_wavelength_nm() -> f64 {
+    DEFAULT_WAVELENGTH_NM
+}
+fn default_receiver_aperture_mm() -> f64 {
+    DEFAULT_RECEIVER_APERTURE_MM
+}
+fn default_dark_below() -> f64 {
+    DEFAULT_INTENSITY_DARK_BELOW
+}
+fn default_saturated_above() -> f64 {
+    DEFAULT_INTENSITY_SATURATED_ABOVE
+}
+
+/// The ILD 2300's laser wavelength, nm (red; the data sheet's figure, see docs/decisions.md).
+pub const DEFAULT_WAVELENGTH_NM: f64 = 670.0;
+/// The receiving lens's clear aperture, mm: assumed (not in the data sheet), a lens of this
+/// size fits the ILD 2300's receiver window.
+pub const DEFAULT_RECEIVER_APERTURE_MM: f64 = 12.0;
+/// The darkest spot the receiver still evaluates, relative intensity: assumed, a black (5 %)
+/// surface seen 60 deg off its normal at the far end of the range (0.0125) still measures.
+pub const DEFAULT_INTENSITY_DARK_BELOW: f64 = 0.01;
+/// The brightest spot the receiver evaluates unsaturated, relative intensity: assumed, ten
+/// times a white surface at mid-range (only a glint of a glossy surface reaches it).
+pub const DEFAULT_INTENSITY_SATURATED_ABOVE: f64 = 10.0;
 
 /// The scene's `sensor` section.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -70,6 +103,18 @@ pub struct SensorConfig {
     /// the exposure, which ends at the cycle's instant. At most one cycle.
     #[serde(default)]
     pub exposure_us: f64,
+    /// The laser's wavelength, nm (for the speckle, part `speckle`).
+    #[serde(default = "default_wavelength_nm")]
+    pub wavelength_nm: f64,
+    /// The receiving lens's clear aperture, mm (for the speckle, part `speckle`).
+    #[serde(default = "default_receiver_aperture_mm")]
+    pub receiver_aperture_mm: f64,
+    /// Below this relative intensity the receiver finds no peak (part `receiver_intensity`).
+    #[serde(default = "default_dark_below")]
+    pub intensity_dark_below: f64,
+    /// Above this relative intensity the receiver saturates (part `receiver_intensity`).
+    #[serde(default = "default_saturated_above")]
+    pub intensity_saturated_above: f64,
 }
 
 impl Default for SensorConfig {
@@ -82,6 +127,10 @@ impl Default for SensorConfig {
             counter_start: 0,
             range: MeasuringRange::ILD2300_100,
             exposure_us: 0.0,
+            wavelength_nm: DEFAULT_WAVELENGTH_NM,
+            receiver_aperture_mm: DEFAULT_RECEIVER_APERTURE_MM,
+            intensity_dark_below: DEFAULT_INTENSITY_DARK_BELOW,
+            intensity_saturated_above: DEFAULT_INTENSITY_SATURATED_ABOVE,
         }
     }
 }
@@ -128,6 +177,8 @@ pub struct Ild2300 {
     effective_rate_hz: f64,
     noise: Option<Normal<f64>>,
     rng: ChaCha8Rng,
+    /// Whether too dark and saturated spots are refused (part `receiver_intensity`).
+    intensity_limits: bool,
 }
 
 impl Ild2300 {
@@ -182,6 +233,32 @@ impl Ild2300 {
                 "finite, from 0 to one measuring cycle (1e6 / measuring_rate_hz us)",
             );
         }
+        if !(config.wavelength_nm.is_finite() && config.wavelength_nm > 0.0) {
+            return bad("wavelength_nm", config.wavelength_nm, "finite and > 0");
+        }
+        if !(config.receiver_aperture_mm.is_finite() && config.receiver_aperture_mm > 0.0) {
+            return bad(
+                "receiver_aperture_mm",
+                config.receiver_aperture_mm,
+                "finite and > 0",
+            );
+        }
+        if !(config.intensity_dark_below.is_finite() && config.intensity_dark_below >= 0.0) {
+            return bad(
+                "intensity_dark_below",
+                config.intensity_dark_below,
+                "finite and >= 0",
+            );
+        }
+        if config.intensity_saturated_above.is_nan()
+            || config.intensity_saturated_above <= config.intensity_dark_below
+        {
+            return bad(
+                "intensity_saturated_above",
+                config.intensity_saturated_above,
+                "above intensity_dark_below",
+            );
+        }
         let span = config.range.span_mm;
         if !(span.is_finite() && span > 0.0 && config.range.start_mm.is_finite()) {
             return bad("range.span_mm", span, "finite and > 0 (start finite)");
@@ -196,7 +273,16 @@ impl Ild2300 {
             effective_rate_hz: config.measuring_rate_hz * (1.0 + config.clock_drift_ppm * 1e-6),
             noise,
             rng,
+            intensity_limits: false,
         })
+    }
+
+    /// The same sensor refusing too dark and saturated spots, or not (part
+    /// `receiver_intensity`).
+    #[must_use]
+    pub fn with_intensity_limits(mut self, on: bool) -> Ild2300 {
+        self.intensity_limits = on;
+        self
     }
 
     /// The nominal measuring rate, Hz.
@@ -259,23 +345,39 @@ impl Ild2300 {
     }
 
     /// What the receiver made of the optics over one exposure: the average of the distances
-    /// seen (the part of the path the spot was shaded or off the surface adds no light), or,
-    /// when none was, the outcome at the exposure's end.
+    /// seen, each weighted by its intensity (the part of the path the spot was shaded or off
+    /// the surface adds no light), with the exposure's mean intensity; when none was seen, the
+    /// outcome at the exposure's end.
     #[must_use]
     pub fn exposed(outcomes: impl IntoIterator<Item = OpticalOutcome>) -> OpticalOutcome {
-        let (mut sum_mm, mut seen, mut last) = (0.0, 0u32, OpticalOutcome::Miss);
+        let (mut weighted_mm, mut plain_mm, mut sum_intensity) = (0.0, 0.0, 0.0);
+        let (mut looks, mut seen, mut last) = (0u32, 0u32, OpticalOutcome::Miss);
         for outcome in outcomes {
-            if let OpticalOutcome::Distance { z_meas_mm } = outcome {
-                sum_mm += z_meas_mm;
+            if let OpticalOutcome::Distance {
+                z_meas_mm,
+                intensity,
+            } = outcome
+            {
+                weighted_mm += intensity * z_meas_mm;
+                plain_mm += z_meas_mm;
+                sum_intensity += intensity;
                 seen += 1;
             }
+            looks += 1;
             last = outcome;
         }
         if seen == 0 {
             return last;
         }
+        // Looks that send no light still place the spot when none sends any.
+        let z_meas_mm = if sum_intensity > 0.0 {
+            weighted_mm / sum_intensity
+        } else {
+            plain_mm / f64::from(seen)
+        };
         OpticalOutcome::Distance {
-            z_meas_mm: sum_mm / f64::from(seen),
+            z_meas_mm,
+            intensity: sum_intensity / f64::from(looks),
         }
     }
 
@@ -284,7 +386,7 @@ impl Ild2300 {
         let counter =
             ((u64::from(self.config.counter_start) + instant.index) % COUNTER_MODULUS) as u32;
         let true_distance_mm = match outcome {
-            OpticalOutcome::Distance { z_meas_mm } => Some(*z_meas_mm),
+            OpticalOutcome::Distance { z_meas_mm, .. } => Some(*z_meas_mm),
             OpticalOutcome::Miss | OpticalOutcome::Shaded(_) => None,
         };
         IldSample {
@@ -297,9 +399,21 @@ impl Ild2300 {
 
     /// The value the sensor sends for an optical outcome (noise drawn when enabled).
     pub fn value_for(&mut self, outcome: &OpticalOutcome) -> IldValue {
-        let OpticalOutcome::Distance { z_meas_mm } = *outcome else {
+        let OpticalOutcome::Distance {
+            z_meas_mm,
+            intensity,
+        } = *outcome
+        else {
             return IldValue::Error(IldError::NoPeak);
         };
+        if self.intensity_limits {
+            if intensity < self.config.intensity_dark_below {
+                return IldValue::Error(IldError::NoPeak);
+            }
+            if intensity > self.config.intensity_saturated_above {
+                return IldValue::Error(IldError::PeakTooWide);
+            }
+        }
         let noisy = z_meas_mm + self.noise.map_or(0.0, |n| n.sample(&mut self.rng));
         let range = self.config.range;
         let nearest = range.digital_to_mm(0).unwrap_or(range.start_mm);
@@ -325,7 +439,10 @@ mod tests {
     }
 
     fn distance(z_meas_mm: f64) -> OpticalOutcome {
-        OpticalOutcome::Distance { z_meas_mm }
+        OpticalOutcome::Distance {
+            z_meas_mm,
+            intensity: 1.0,
+        }
     }
 
     /// Samples over one second, asked period by period as the plant does at 20 kHz.
@@ -448,6 +565,72 @@ mod tests {
     }
 
     #[test]
+    fn the_receiver_refuses_a_spot_too_dark_or_saturated_only_with_its_limits() {
+        let lit = |intensity| OpticalOutcome::Distance {
+            z_meas_mm: 130.0,
+            intensity,
+        };
+        let config = SensorConfig {
+            intensity_dark_below: 0.01,
+            intensity_saturated_above: 10.0,
+            ..SensorConfig::default()
+        };
+        let mut limited = sensor(config, false).with_intensity_limits(true);
+        assert_eq!(
+            limited.value_for(&lit(0.009)),
+            IldValue::Error(IldError::NoPeak)
+        );
+        assert_eq!(
+            limited.value_for(&lit(10.5)),
+            IldValue::Error(IldError::PeakTooWide)
+        );
+        let measured = limited.value_for(&lit(0.01));
+        assert!(matches!(measured, IldValue::Distance(_)), "{measured:?}");
+        assert_eq!(limited.value_for(&lit(10.0)), measured);
+        // Without the part the intensity is not looked at.
+        let mut unlimited = sensor(config, false);
+        assert_eq!(unlimited.value_for(&lit(0.0)), measured);
+        assert_eq!(unlimited.value_for(&lit(1e6)), measured);
+    }
+
+    #[test]
+    fn receiver_fields_out_of_their_domain_are_refused() {
+        for (config, field) in [
+            (
+                SensorConfig {
+                    wavelength_nm: 0.0,
+                    ..SensorConfig::default()
+                },
+                "wavelength_nm",
+            ),
+            (
+                SensorConfig {
+                    receiver_aperture_mm: f64::INFINITY,
+                    ..SensorConfig::default()
+                },
+                "receiver_aperture_mm",
+            ),
+            (
+                SensorConfig {
+                    intensity_dark_below: -0.1,
+                    ..SensorConfig::default()
+                },
+                "intensity_dark_below",
+            ),
+            (
+                SensorConfig {
+                    intensity_dark_below: 2.0,
+                    intensity_saturated_above: 2.0,
+                    ..SensorConfig::default()
+                },
+                "intensity_saturated_above",
+            ),
+        ] {
+            assert_eq!(Ild2300::new(&config, 1, false).unwrap_err().field, field);
+        }
+    }
+
+    #[test]
     fn noise_has_its_rms_and_is_seeded() {
         let range = MeasuringRange::ILD2300_100;
         let draw = |seed: u64| {
@@ -501,7 +684,24 @@ mod tests {
                 distance(103.0),
                 OpticalOutcome::Miss
             ]),
-            distance(101.5)
+            OpticalOutcome::Distance {
+                z_meas_mm: 101.5,
+                intensity: 0.5
+            }
+        );
+        // Each look weighs as much as the light it sends: 100 mm at 3, 104 mm at 1.
+        let lit = |z_meas_mm, intensity| OpticalOutcome::Distance {
+            z_meas_mm,
+            intensity,
+        };
+        assert_eq!(
+            Ild2300::exposed([lit(100.0, 3.0), lit(104.0, 1.0)]),
+            lit(101.0, 2.0)
+        );
+        // Looks that send no light still place the spot.
+        assert_eq!(
+            Ild2300::exposed([lit(100.0, 0.0), lit(104.0, 0.0), shaded]),
+            lit(102.0, 0.0)
         );
         assert_eq!(
             Ild2300::exposed([distance(100.0), distance(101.0), distance(105.0)]),

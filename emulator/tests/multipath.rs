@@ -113,8 +113,8 @@ fn edge_statistics(scene: &Scene, on: &Optics, off: &Optics) -> EdgeStatistics {
             let near = wall_mm < NEAR_WALL_MM;
             let same = match (r_off.outcome, r_on.outcome) {
                 (
-                    OpticalOutcome::Distance { z_meas_mm: a },
-                    OpticalOutcome::Distance { z_meas_mm: b },
+                    OpticalOutcome::Distance { z_meas_mm: a, .. },
+                    OpticalOutcome::Distance { z_meas_mm: b, .. },
                 ) => a.to_bits() == b.to_bits(),
                 (a, b) => a == b,
             };
@@ -135,8 +135,12 @@ fn edge_statistics(scene: &Scene, on: &Optics, off: &Optics) -> EdgeStatistics {
             let beam = r_off.beam;
             let true_mm = beam.z_meas_at((spot - beam.origin_mm).norm() / beam.direction.norm());
             let (
-                OpticalOutcome::Distance { z_meas_mm: z_off },
-                OpticalOutcome::Distance { z_meas_mm: z_on },
+                OpticalOutcome::Distance {
+                    z_meas_mm: z_off, ..
+                },
+                OpticalOutcome::Distance {
+                    z_meas_mm: z_on, ..
+                },
             ) = (r_off.outcome, r_on.outcome)
             else {
                 // The bounce never turns a peak into none or back: shading is the primary's.

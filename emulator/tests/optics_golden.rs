@@ -63,7 +63,7 @@ fn sweep_fingerprint(config: &OpticsConfig) -> u64 {
                     beta: angle(j),
                 });
                 match r.outcome {
-                    OpticalOutcome::Distance { z_meas_mm } => {
+                    OpticalOutcome::Distance { z_meas_mm, .. } => {
                         f.add(1);
                         f.add(z_meas_mm.to_bits());
                     }

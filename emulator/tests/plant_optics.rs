@@ -3,9 +3,10 @@
 
 use std::path::Path;
 
+use scanhil_emulator::optics::receiver::SurfaceFinish;
 use scanhil_emulator::plant::Plant;
-use scanhil_emulator::scene::Scene;
-use scanhil_protocol::ild::IldValue;
+use scanhil_emulator::scene::{Part, Scene};
+use scanhil_protocol::ild::{IldError, IldValue};
 use scanhil_protocol::plant_units::ActuatorPair;
 
 fn fixture(name: &str) -> Scene {
@@ -152,4 +153,80 @@ fn an_exposure_sees_the_moving_spot_at_the_middle_of_its_path() {
         from_middle_mm < 1e-4 && from_instant_mm > 20.0 * from_middle_mm,
         "the exposure's average {from_middle_mm} mm from the middle's distance, {from_instant_mm} mm from the instant's"
     );
+}
+
+#[test]
+fn the_receiver_parts_need_the_sensor_and_a_sound_finish() {
+    let mut scene = fixture("plane-120mm.json");
+    scene
+        .parts
+        .retain(|p| !matches!(p.name(), "sensor" | "sensor_noise"));
+    scene.parts.push(Part::Speckle);
+    let (field, reason) = scene.validate().unwrap_err();
+    assert_eq!(field, "parts");
+    assert!(reason.contains("`speckle` needs part `sensor`"), "{reason}");
+
+    let mut scene = fixture("plane-120mm.json");
+    scene.surface_finish = Some(SurfaceFinish {
+        reflectance: 2.0,
+        ..SurfaceFinish::default()
+    });
+    // A section whose parts are not listed is ignored; listed, it is checked.
+    assert!(scene.validate().is_ok());
+    scene.parts.push(Part::ReceiverIntensity);
+    let (field, reason) = scene.validate().unwrap_err();
+    assert_eq!(field, "surface_finish.reflectance");
+    assert!(reason.contains("in [0, 1]"), "{reason}");
+}
+
+#[test]
+fn speckle_moves_the_distances_by_its_rms_and_a_dark_surface_gives_no_peak() {
+    let mut scene = fixture("plane-120mm.json");
+    scene.parts.retain(|part| {
+        !matches!(
+            part.name(),
+            "sensor_noise" | "angle_sensor_noise" | "angle_sensor_bandwidth"
+        )
+    });
+    let plain = driven_distances(&scene);
+    let mut speckled_scene = scene.clone();
+    speckled_scene.parts.push(Part::Speckle);
+    let speckled = driven_distances(&speckled_scene);
+    assert_eq!(plain.len(), speckled.len());
+    let errors_um: Vec<f64> = plain
+        .iter()
+        .zip(&speckled)
+        .map(|((c, z), (c_s, z_s))| {
+            assert_eq!(c, c_s);
+            (z_s - z) * 1e3
+        })
+        .collect();
+    let rms_um = (errors_um.iter().map(|e| e * e).sum::<f64>() / errors_um.len() as f64).sqrt();
+    // Dorsch et al.'s lambda / (2 pi sin u sin theta) for this receiver and the paper's
+    // 11-19 deg triangulation angle: 6-12 um at full contrast (a 0.2 um rough face). The
+    // spot sweeps many diameters in 0.02 s, so the rms is the field's.
+    assert!((3.0..20.0).contains(&rms_um), "{rms_um} um");
+
+    let mut dark = scene.clone();
+    dark.parts.push(Part::ReceiverIntensity);
+    dark.surface_finish = Some(SurfaceFinish {
+        reflectance: 0.005,
+        ..SurfaceFinish::default()
+    });
+    let mut plant = Plant::from_scene(&dark).unwrap();
+    let mut bright = Plant::from_scene(&{
+        let mut bright = dark.clone();
+        bright.surface_finish = Some(SurfaceFinish::default());
+        bright
+    })
+    .unwrap();
+    for _ in 0..100 {
+        for sample in plant.step(ActuatorPair::default()).unwrap().sensor_samples {
+            assert_eq!(sample.value, IldValue::Error(IldError::NoPeak));
+            assert!(sample.true_distance_mm.is_some());
+        }
+        for sample in bright.step(ActuatorPair::default()).unwrap().sensor_samples {
+            assert!(matches!(sample.value, IldValue::Distance(_)));
+        }
+    }
 }

@@ -26,7 +26,7 @@ impl ScanScene for EmulatedScanner {
             })
             .outcome
         {
-            OpticalOutcome::Distance { z_meas_mm } => Some(z_meas_mm),
+            OpticalOutcome::Distance { z_meas_mm, .. } => Some(z_meas_mm),
             OpticalOutcome::Miss | OpticalOutcome::Shaded(_) => None,
         }
     }
@@ -92,13 +92,15 @@ impl EmulatedScanner {
             Surface::from_config(surface_config, base_dir).map_err(|e| part("surface")(&e))?;
         let optics = Optics::new(&scene.optics.clone().unwrap_or_default(), surface)
             .map_err(|e| part("optics")(&e))?
-            .with_shading(scene.has(Part::Shading));
+            .with_shading(scene.has(Part::Shading))
+            .with_receiver(scene.receiver_model());
         let sensor = Ild2300::new(
             &scene.sensor.unwrap_or_default(),
             scene.seed,
             scene.has(Part::SensorNoise),
         )
-        .map_err(|e| part("sensor")(&e))?;
+        .map_err(|e| part("sensor")(&e))?
+        .with_intensity_limits(scene.has(Part::ReceiverIntensity));
         Ok(EmulatedScanner { optics, sensor })
     }
 

@@ -107,14 +107,15 @@ fn probe(scene: &Scene, d_alpha_deg: f64, d_beta_deg: f64) -> anyhow::Result<Pro
     let optics_config = scene.optics.clone().unwrap_or_default();
     let optics = Optics::new(&optics_config, surface)
         .with_context(|| format!("scene `{}`: optics", scene.name))?
-        .with_shading(scene.has(Part::Shading));
+        .with_shading(scene.has(Part::Shading))
+        .with_receiver(scene.receiver_model());
     let angles = SensingPair {
         alpha: d_alpha_deg.to_radians(),
         beta: d_beta_deg.to_radians(),
     };
     let reading = optics.observe(angles);
     let (outcome, shade_reason, true_distance_mm) = match reading.outcome {
-        OpticalOutcome::Distance { z_meas_mm } => ("distance", None, Some(z_meas_mm)),
+        OpticalOutcome::Distance { z_meas_mm, .. } => ("distance", None, Some(z_meas_mm)),
         OpticalOutcome::Miss => ("miss", None, None),
         OpticalOutcome::Shaded(reason) => ("shaded", Some(reason.name()), None),
     };
