@@ -41,6 +41,49 @@ fn probe_json_on_the_plane_reports_spot_truth_and_raw_value() {
 }
 
 #[test]
+fn probe_reports_the_spot_s_intensity_and_the_receiver_s_verdict_on_it() {
+    // Without `receiver_intensity` every spot counts as 1; with it, the realistic sensor's
+    // Duplo top at rest sends its matte share plus its gloss lobe's, and a black finish
+    // (reflectance 0.001, no gloss) is too dark for the receiver.
+    let probe = |scene: &str| {
+        let out = emulator(&[
+            "probe",
+            "--scene",
+            scene,
+            "--d-alpha",
+            "0",
+            "--d-beta",
+            "0",
+            "--json",
+        ]);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice::<serde_json::Value>(&out.stdout).expect("probe JSON")
+    };
+    let plain = probe(&fixture("duplo-2x4-130mm.json"));
+    assert_eq!(plain["optics"]["intensity"], 1.0);
+    let realistic_path = fixture("duplo-2x4-130mm-realistic-sensor.json");
+    let realistic = probe(&realistic_path);
+    let intensity = realistic["optics"]["intensity"].as_f64().unwrap();
+    // Matte alone: 0.5 cos(view) (120 / 140)^2 = 0.36; the gloss adds about as much again.
+    assert!((0.4..1.5).contains(&intensity), "{intensity}");
+    assert!(realistic["sensor"]["distance_mm"].as_f64().is_some());
+
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&realistic_path).unwrap()).unwrap();
+    scene["surface_finish"] = serde_json::json!({ "reflectance": 0.001 });
+    let black = dir.path().join("black.json");
+    std::fs::write(&black, scene.to_string()).unwrap();
+    let dark = probe(black.to_str().unwrap());
+    assert!(dark["optics"]["intensity"].as_f64().unwrap() < 0.01);
+    assert_eq!(dark["sensor"]["error"], "no_peak");
+}
+
+#[test]
 fn probe_text_names_a_shaded_position_as_an_error() {
     let scene = fixture("step-3mm.json");
     // Sweep until the wall shades the spot; the text then says no_peak, never a distance.

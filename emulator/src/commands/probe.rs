@@ -44,6 +44,9 @@ struct OpticsReport {
     shade_reason: Option<&'static str>,
     /// The noise-free distance along the folded beam, mm.
     true_distance_mm: Option<f64>,
+    /// The light the spot sends the receiver, relative to a white matte surface facing it at
+    /// mid-range (1 unless the scene lists `receiver_intensity`).
+    intensity: Option<f64>,
 }
 
 /// What the sensor sent.
@@ -114,15 +117,19 @@ fn probe(scene: &Scene, d_alpha_deg: f64, d_beta_deg: f64) -> anyhow::Result<Pro
         beta: d_beta_deg.to_radians(),
     };
     let reading = optics.observe(angles);
-    let (outcome, shade_reason, true_distance_mm) = match reading.outcome {
-        OpticalOutcome::Distance { z_meas_mm, .. } => ("distance", None, Some(z_meas_mm)),
-        OpticalOutcome::Miss => ("miss", None, None),
-        OpticalOutcome::Shaded(reason) => ("shaded", Some(reason.name()), None),
+    let (outcome, shade_reason, true_distance_mm, intensity) = match reading.outcome {
+        OpticalOutcome::Distance {
+            z_meas_mm,
+            intensity,
+        } => ("distance", None, Some(z_meas_mm), Some(intensity)),
+        OpticalOutcome::Miss => ("miss", None, None, None),
+        OpticalOutcome::Shaded(reason) => ("shaded", Some(reason.name()), None, None),
     };
     let sensor = if scene.has(Part::Sensor) {
         let sensor_config = scene.sensor.unwrap_or_default();
         let mut sensor = Ild2300::new(&sensor_config, scene.seed, scene.has(Part::SensorNoise))
-            .with_context(|| format!("scene `{}`: sensor", scene.name))?;
+            .with_context(|| format!("scene `{}`: sensor", scene.name))?
+            .with_intensity_limits(scene.has(Part::ReceiverIntensity));
         let value = sensor.value_for(&reading.outcome);
         let distance_mm = match value {
             IldValue::Distance(digital) => sensor.range().digital_to_mm(digital),
@@ -163,6 +170,7 @@ fn probe(scene: &Scene, d_alpha_deg: f64, d_beta_deg: f64) -> anyhow::Result<Pro
             outcome,
             shade_reason,
             true_distance_mm,
+            intensity,
         },
         sensor,
     })
@@ -214,7 +222,10 @@ fn format_text(r: &ProbeReport) -> String {
         format!(
             "optics         {}",
             match (r.optics.true_distance_mm, r.optics.shade_reason) {
-                (Some(d), _) => format!("distance {d:.4} mm"),
+                (Some(d), _) => format!(
+                    "distance {d:.4} mm, intensity {:.4}",
+                    r.optics.intensity.unwrap_or(1.0)
+                ),
                 (None, Some(reason)) => format!("shaded ({reason}): no distance"),
                 (None, None) => "miss: no surface on the beam".into(),
             }
