@@ -29,11 +29,11 @@ use crate::drive_stepper::DriveStepper;
 use crate::integrator::StabilityError;
 use crate::latency::OutputLatency;
 use crate::mirror::SensingAxis;
-use crate::optics::{Optics, OpticsError};
+use crate::optics::Optics;
 use crate::power::{PowerAction, PowerMonitor};
-use crate::scene::{Part, Scene};
+use crate::scene::{OpticalPathError, Part, Scene};
 use crate::sensor::{Ild2300, IldSample, SensorError};
-use scanhil_scene::surface::{Surface, SurfaceError};
+use scanhil_scene::surface::Surface;
 
 /// Why the plant could not be built or stepped.
 #[derive(Debug, thiserror::Error)]
@@ -46,21 +46,13 @@ pub enum PlantError {
         /// The stability check's finding (in the message; not chained as a source).
         cause: StabilityError,
     },
-    /// The scene's surface could not be built (e.g. a height map file is unreadable).
-    #[error("scene {scene}: surface: {cause}")]
-    Surface {
+    /// The scene's surface or optics could not be built (e.g. a height map file is unreadable).
+    #[error("scene {scene}: {cause}")]
+    OpticalPath {
         /// The scene's name.
         scene: String,
         /// What went wrong.
-        cause: SurfaceError,
-    },
-    /// The scene's optics section is unusable.
-    #[error("scene {scene}: optics: {cause}")]
-    Optics {
-        /// The scene's name.
-        scene: String,
-        /// What went wrong.
-        cause: OpticsError,
+        cause: OpticalPathError,
     },
     /// The scene's sensor section is unusable.
     #[error("scene {scene}: sensor: {cause}")]
@@ -173,37 +165,24 @@ struct OpticalChain {
 impl OpticalChain {
     /// Builds the chain if the scene lists `optics` (validation made sure a surface is there).
     fn from_scene(scene: &Scene) -> Result<Option<OpticalChain>, PlantError> {
-        let Some(surface_config) = scene.surface.as_ref().filter(|_| scene.has(Part::Optics))
-        else {
+        if !scene.has(Part::Optics) {
             return Ok(None);
-        };
+        }
         let name = || scene.name.clone();
-        let base_dir = scene.base_dir().unwrap_or(std::path::Path::new("."));
-        let surface = Surface::from_config(surface_config, base_dir).map_err(|cause| {
-            PlantError::Surface {
+        let optics = scene
+            .optical_path()
+            .map_err(|cause| PlantError::OpticalPath {
                 scene: name(),
                 cause,
-            }
-        })?;
-        let optics = Optics::new(&scene.optics.clone().unwrap_or_default(), surface)
-            .map_err(|cause| PlantError::Optics {
+            })?;
+        let sensor = scene
+            .has(Part::Sensor)
+            .then(|| scene.triangulation_sensor())
+            .transpose()
+            .map_err(|cause| PlantError::Sensor {
                 scene: name(),
                 cause,
-            })?
-            .with_shading(scene.has(Part::Shading))
-            .with_receiver(scene.receiver_model());
-        let sensor = if scene.has(Part::Sensor) {
-            let config = scene.sensor.unwrap_or_default();
-            let sensor = Ild2300::new(&config, scene.seed, scene.has(Part::SensorNoise))
-                .map_err(|cause| PlantError::Sensor {
-                    scene: name(),
-                    cause,
-                })?
-                .with_intensity_limits(scene.has(Part::ReceiverIntensity));
-            Some(sensor)
-        } else {
-            None
-        };
+            })?;
         Ok(Some(OpticalChain { optics, sensor }))
     }
 

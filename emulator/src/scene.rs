@@ -20,11 +20,11 @@ use crate::current_loop::CurrentLoopConfig;
 use crate::integrator::IntegratorConfig;
 use crate::mirror::MirrorConfig;
 use crate::optics::receiver::{ReceiverOptics, Speckle, SurfaceFinish};
-use crate::optics::{OpticsConfig, ReceiverModel};
+use crate::optics::{Optics, OpticsConfig, OpticsError, ReceiverModel};
 use crate::power::PowerLimitConfig;
-use crate::sensor::SensorConfig;
+use crate::sensor::{Ild2300, SensorConfig, SensorError};
 use scanhil_scene::json_file::{self, JsonFileError};
-use scanhil_scene::surface::SurfaceConfig;
+use scanhil_scene::surface::{Surface, SurfaceConfig, SurfaceError};
 
 /// The paper's control rate, in Hz (Ta = 50 us).
 pub const DEFAULT_CONTROL_RATE_HZ: f64 = 20_000.0;
@@ -229,6 +229,20 @@ pub enum SceneError {
     },
 }
 
+/// Why a scene's optical path could not be built.
+#[derive(Debug, thiserror::Error)]
+pub enum OpticalPathError {
+    /// The scene has no `surface` section.
+    #[error("the scene has no `surface`")]
+    NoSurface,
+    /// The surface could not be built (e.g. a height map file is unreadable).
+    #[error("surface: {0}")]
+    Surface(SurfaceError),
+    /// The optics section is unusable.
+    #[error("optics: {0}")]
+    Optics(OpticsError),
+}
+
 /// The fastest a scene's plant may be stepped, Hz (ten megahertz: integrator studies step
 /// the plant at MHz; beyond it the buffers sized in periods outgrow any memory).
 pub const MAX_PLANT_RATE_HZ: f64 = 1e7;
@@ -290,11 +304,41 @@ impl Scene {
             .unwrap_or_else(|| crate::power::coil_resistance_ohm(&self.mirror))
     }
 
+    /// The scene's optical path: its surface under its optics, with shading and the receiver's
+    /// intensity and speckle as its parts say (the part `optics` itself is not looked at).
+    ///
+    /// # Errors
+    /// [`OpticalPathError`]: no surface, or the surface or optics fault.
+    pub fn optical_path(&self) -> Result<Optics, OpticalPathError> {
+        let config = self.surface.as_ref().ok_or(OpticalPathError::NoSurface)?;
+        let base_dir = self.base_dir().unwrap_or(Path::new("."));
+        let surface = Surface::from_config(config, base_dir).map_err(OpticalPathError::Surface)?;
+        Ok(
+            Optics::new(&self.optics.clone().unwrap_or_default(), surface)
+                .map_err(OpticalPathError::Optics)?
+                .with_shading(self.has(Part::Shading))
+                .with_receiver(self.receiver_model()),
+        )
+    }
+
+    /// The scene's triangulation sensor, with its noise and its receiver's limits as its parts
+    /// say (the part `sensor` itself is not looked at).
+    ///
+    /// # Errors
+    /// [`SensorError`] naming the bad field of the `sensor` section.
+    pub fn triangulation_sensor(&self) -> Result<Ild2300, SensorError> {
+        Ok(Ild2300::new(
+            &self.sensor.unwrap_or_default(),
+            self.seed,
+            self.has(Part::SensorNoise),
+        )?
+        .with_intensity_limits(self.has(Part::ReceiverIntensity)))
+    }
+
     /// What the receiver adds to the optics: the finish's intensities with
     /// `receiver_intensity`, its speckle with `speckle` (pattern drawn from the scene's seed,
     /// decorrelating over the spot's diameter).
-    #[must_use]
-    pub fn receiver_model(&self) -> ReceiverModel {
+    fn receiver_model(&self) -> ReceiverModel {
         let finish = self.surface_finish.unwrap_or_default();
         let sensor = self.sensor.unwrap_or_default();
         let spot_diameter_mm = self

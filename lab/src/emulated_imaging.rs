@@ -6,11 +6,10 @@
 use std::path::Path;
 
 use scanhil_emulator::optics::{OpticalOutcome, Optics};
-use scanhil_emulator::scene::{Part, Scene};
+use scanhil_emulator::scene::{OpticalPathError, Scene};
 use scanhil_emulator::sensor::Ild2300;
 use scanhil_protocol::ild::IldValue;
 use scanhil_protocol::plant_units::SensingPair;
-use scanhil_scene::surface::Surface;
 
 use scanhil_controller::imaging::progressive::ScanScene;
 use scanhil_controller::imaging::reconstruct::ScanSample;
@@ -83,24 +82,14 @@ impl EmulatedScanner {
                 reason: e.to_string(),
             }
         };
-        let surface_config = scene
-            .surface
-            .as_ref()
-            .ok_or_else(|| EmulatedError::NoSurface { path: name.clone() })?;
-        let base_dir = scene.base_dir().unwrap_or(Path::new("."));
-        let surface =
-            Surface::from_config(surface_config, base_dir).map_err(|e| part("surface")(&e))?;
-        let optics = Optics::new(&scene.optics.clone().unwrap_or_default(), surface)
-            .map_err(|e| part("optics")(&e))?
-            .with_shading(scene.has(Part::Shading))
-            .with_receiver(scene.receiver_model());
-        let sensor = Ild2300::new(
-            &scene.sensor.unwrap_or_default(),
-            scene.seed,
-            scene.has(Part::SensorNoise),
-        )
-        .map_err(|e| part("sensor")(&e))?
-        .with_intensity_limits(scene.has(Part::ReceiverIntensity));
+        let optics = scene.optical_path().map_err(|e| match e {
+            OpticalPathError::NoSurface => EmulatedError::NoSurface { path: name.clone() },
+            OpticalPathError::Surface(e) => part("surface")(&e),
+            OpticalPathError::Optics(e) => part("optics")(&e),
+        })?;
+        let sensor = scene
+            .triangulation_sensor()
+            .map_err(|e| part("sensor")(&e))?;
         Ok(EmulatedScanner { optics, sensor })
     }
 

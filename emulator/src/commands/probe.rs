@@ -2,18 +2,16 @@
 //! height there, and what the ILD 2300 reports (raw value and distance, or the error), plus
 //! the point the scene's geometry model reconstructs from it.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context;
 use serde::Serialize;
 
-use scanhil_emulator::optics::{OpticalOutcome, Optics};
+use scanhil_emulator::optics::OpticalOutcome;
 use scanhil_emulator::scene::{Part, Scene};
-use scanhil_emulator::sensor::Ild2300;
 use scanhil_protocol::ild::IldValue;
 use scanhil_protocol::plant_units::SensingPair;
-use scanhil_scene::surface::Surface;
 
 use super::print_or_broken_pipe;
 
@@ -100,18 +98,9 @@ fn probe(scene: &Scene, d_alpha_deg: f64, d_beta_deg: f64) -> anyhow::Result<Pro
         d_alpha_deg.is_finite() && d_beta_deg.is_finite(),
         "--d-alpha and --d-beta must be finite (got {d_alpha_deg}, {d_beta_deg})"
     );
-    let surface_config = scene
-        .surface
-        .as_ref()
-        .with_context(|| format!("scene `{}` has no `surface` section", scene.name))?;
-    let base_dir = scene.base_dir().unwrap_or(Path::new("."));
-    let surface = Surface::from_config(surface_config, base_dir)
-        .with_context(|| format!("scene `{}`: surface", scene.name))?;
-    let optics_config = scene.optics.clone().unwrap_or_default();
-    let optics = Optics::new(&optics_config, surface)
-        .with_context(|| format!("scene `{}`: optics", scene.name))?
-        .with_shading(scene.has(Part::Shading))
-        .with_receiver(scene.receiver_model());
+    let optics = scene
+        .optical_path()
+        .with_context(|| format!("scene `{}`", scene.name))?;
     let angles = SensingPair {
         alpha: d_alpha_deg.to_radians(),
         beta: d_beta_deg.to_radians(),
@@ -126,10 +115,9 @@ fn probe(scene: &Scene, d_alpha_deg: f64, d_beta_deg: f64) -> anyhow::Result<Pro
         OpticalOutcome::Shaded(reason) => ("shaded", Some(reason.name()), None, None),
     };
     let sensor = if scene.has(Part::Sensor) {
-        let sensor_config = scene.sensor.unwrap_or_default();
-        let mut sensor = Ild2300::new(&sensor_config, scene.seed, scene.has(Part::SensorNoise))
-            .with_context(|| format!("scene `{}`: sensor", scene.name))?
-            .with_intensity_limits(scene.has(Part::ReceiverIntensity));
+        let mut sensor = scene
+            .triangulation_sensor()
+            .with_context(|| format!("scene `{}`: sensor", scene.name))?;
         let value = sensor.value_for(&reading.outcome);
         let distance_mm = match value {
             IldValue::Distance(digital) => sensor.range().digital_to_mm(digital),
@@ -274,6 +262,7 @@ mod tests {
     use super::*;
     use scanhil_protocol::ild::MeasuringRange;
     use scanhil_scene::surface::duplo;
+    use std::path::Path;
 
     fn fixture(name: &str) -> Scene {
         let path = Path::new(env!("CARGO_MANIFEST_DIR"))
