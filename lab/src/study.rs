@@ -19,7 +19,11 @@
 //!
 //! Either way [`table`] collects the result folders' `report.json` into `study.csv` and
 //! `study.json`.
+//!
+//! [`precision`] runs a study's variants `repeats` times each and sets each one's wall time
+//! against its errors against the study's exact `reference` (`scanhil-study precision`).
 
 pub mod plan;
+pub mod precision;
 pub mod run;
 pub mod table;

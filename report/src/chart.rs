@@ -73,6 +73,52 @@ const PALETTE: [[u8; 3]; 7] = [
     [230, 159, 0],
 ];
 
+/// Where a value of 0 goes on a log axis, which has no place for it: [`LogZero::BELOW`] times
+/// below the smallest positive value drawn beside it (an exact reference's error against
+/// itself, drawn in sight); the axis label says so ([`LogZero::note`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LogZero {
+    /// The position a 0 is drawn at.
+    pub at: f64,
+}
+
+impl LogZero {
+    /// How far below the smallest positive value a 0 is drawn.
+    pub const BELOW: f64 = 10.0;
+
+    /// The place of the zeros among `values`, or `None` when none is 0; 1 when no value is
+    /// positive.
+    #[must_use]
+    pub fn of(values: impl IntoIterator<Item = f64>) -> Option<LogZero> {
+        let mut smallest = f64::INFINITY;
+        let mut any_zero = false;
+        for v in values {
+            any_zero |= v == 0.0;
+            if v > 0.0 {
+                smallest = smallest.min(v);
+            }
+        }
+        let at = if smallest.is_finite() {
+            smallest / LogZero::BELOW
+        } else {
+            1.0
+        };
+        any_zero.then_some(LogZero { at })
+    }
+
+    /// Where `value` is drawn: itself, or [`LogZero::at`] for a 0.
+    #[must_use]
+    pub fn place(self, value: f64) -> f64 {
+        if value == 0.0 { self.at } else { value }
+    }
+
+    /// The axis label's note: ` (0, WHAT, drawn at 1.0e-3)`.
+    #[must_use]
+    pub fn note(self, what: &str) -> String {
+        format!(" (0, {what}, drawn at {:.1e})", self.at)
+    }
+}
+
 const PANEL_WIDTH_PX: u32 = 900;
 const PANEL_HEIGHT_PX: u32 = 450;
 
@@ -283,6 +329,20 @@ mod tests {
             .matches("<polyline")
             .count();
         assert_eq!(broken, whole + 1);
+    }
+
+    #[test]
+    fn a_zero_is_drawn_ten_times_below_the_smallest_positive_value() {
+        let zero = LogZero::of([3e-2, 0.0, 5e-1]).expect("a zero");
+        assert!((zero.at - 3e-3).abs() < 1e-15, "{zero:?}");
+        assert_eq!(zero.place(0.0), zero.at);
+        assert_eq!(zero.place(0.5), 0.5);
+        assert_eq!(
+            zero.note("the reference"),
+            " (0, the reference, drawn at 3.0e-3)"
+        );
+        assert_eq!(LogZero::of([1.0, 2.0]), None);
+        assert_eq!(LogZero::of([0.0, 0.0]), Some(LogZero { at: 1.0 }));
     }
 
     #[test]

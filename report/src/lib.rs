@@ -14,7 +14,7 @@
 pub mod chart;
 pub mod height_map;
 
-pub use chart::{Axis, Chart, Series, draw_charts};
+pub use chart::{Axis, Chart, LogZero, Series, draw_charts};
 pub use height_map::{MISSING_RGB, MapFigure, MapPanel, draw_height_maps};
 
 use std::path::PathBuf;

@@ -13,7 +13,7 @@ use scanhil_emulator::drive_model::{DriveModel, DriveParts};
 use scanhil_emulator::integrator::Method;
 use scanhil_emulator::precision::{ALPHA_DRIVE_HZ, BETA_DRIVE_HZ, StudyRow, StudySetup, run_study};
 use scanhil_emulator::scene::{Part, Scene};
-use scanhil_report::{Axis, Chart, Series, draw_charts};
+use scanhil_report::{Axis, Chart, LogZero, Series, draw_charts};
 
 /// Arguments of `scanhil-emulator precision`.
 #[derive(Debug, clap::Args)]
@@ -116,22 +116,11 @@ pub fn run(args: Args) -> anyhow::Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// How far below the smallest nonzero error an error of 0 (the exact reference against itself)
-/// is drawn, so the log axis keeps it in sight.
-const ZERO_ERROR_BELOW: f64 = 10.0;
-
 /// The log-log chart of run time against error, a series per method. An error of 0 (the
-/// reference row) has no place on a log axis: it is drawn [`ZERO_ERROR_BELOW`] times below the
+/// reference row) has no place on a log axis: it is drawn [`LogZero::BELOW`] times below the
 /// smallest nonzero error, and the axis label says so.
 fn work_precision_chart(report: &Report) -> Chart {
-    let errors = || report.rows.iter().filter_map(|r| r.max_error_urad);
-    let smallest = errors().filter(|&e| e > 0.0).fold(f64::INFINITY, f64::min);
-    let zero_at = if smallest.is_finite() {
-        smallest / ZERO_ERROR_BELOW
-    } else {
-        1.0
-    };
-    let any_zero = errors().any(|e| e == 0.0);
+    let zero = LogZero::of(report.rows.iter().filter_map(|r| r.max_error_urad));
     let series = Method::ALL
         .iter()
         .map(|&method| Series {
@@ -142,18 +131,14 @@ fn work_precision_chart(report: &Report) -> Chart {
                 .filter(|r| r.method == method)
                 .filter_map(|r| {
                     let error = r.max_error_urad?;
-                    let drawn = if error == 0.0 { zero_at } else { error };
+                    let drawn = zero.map_or(error, |zero| zero.place(error));
                     Some((r.run_time_per_sim_s?, drawn))
                 })
                 .collect(),
             markers: true,
         })
         .collect();
-    let zero_note = if any_zero {
-        format!(" (0, the reference, drawn at {zero_at:.1e})")
-    } else {
-        String::new()
-    };
+    let zero_note = zero.map_or_else(String::new, |zero| zero.note("the reference"));
     Chart {
         title: format!(
             "Work-precision, {} (Ta = {} us, parts: {})",

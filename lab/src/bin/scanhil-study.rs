@@ -9,6 +9,10 @@
 //!   <its folder>/result`.
 //! - `scanhil-study collect STUDY --out DIR`: tabulates the result folders a batch system
 //!   wrote.
+//! - `scanhil-study precision STUDY --out DIR [--jobs N]`: runs every variant the study's
+//!   `repeats` times, one scan at a time by default (so no scan's wall time is inflated by
+//!   another's), and writes `DIR/precision.csv`, `precision.json`, `precision.svg` and
+//!   `precision.png`: wall time per scan against the errors against the study's `reference`.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -16,6 +20,7 @@ use std::process::ExitCode;
 use clap::{Parser, Subcommand};
 use scanhil_controller::run::verdict::Status;
 use scanhil_lab::study::plan::Study;
+use scanhil_lab::study::precision;
 use scanhil_lab::study::run::{VariantOutcome, default_jobs, run_variants};
 use scanhil_lab::study::table::{Row, collect};
 
@@ -54,6 +59,20 @@ enum Command {
         out: PathBuf,
         #[command(flatten)]
         leave_out: LeaveOut,
+    },
+    /// Run every variant `repeats` times and set its wall time against its errors against the
+    /// study's `reference` (work-precision).
+    Precision {
+        /// The study file (with `reference` and `repeats`).
+        study: PathBuf,
+        /// The study's folder (variants/, precision.csv, precision.json, precision.svg,
+        /// precision.png).
+        #[arg(long)]
+        out: PathBuf,
+        /// Worker threads (default 1: two scans at once on a shared machine slow each other,
+        /// and the wall time is what is measured).
+        #[arg(long, default_value_t = 1, allow_negative_numbers = true)]
+        jobs: usize,
     },
     /// Tabulate the result folders of variants run elsewhere.
     Collect {
@@ -128,7 +147,25 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
                 rows.len(),
                 started.elapsed().as_secs_f64()
             )?;
-            Ok(exit_code(&rows))
+            Ok(exit_code(rows.iter().map(|r| r.verdict)))
+        }
+        Command::Precision { study, out, jobs } => {
+            if jobs == 0 {
+                anyhow::bail!("--jobs 0: at least one worker is needed");
+            }
+            let study = Study::load(&study)?;
+            let started = std::time::Instant::now();
+            precision::run(&study, &out, jobs)?;
+            let table = precision::collect(&study, &out)?;
+            print_precision(&table, &out)?;
+            scanhil_protocol::outln!(
+                "{} scans ({} configurations x {}) on {jobs} thread(s) in {:.2} s",
+                table.rows.len(),
+                table.summaries.len(),
+                table.repeats,
+                started.elapsed().as_secs_f64()
+            )?;
+            Ok(precision_exit_code(&table))
         }
         Command::Plan {
             study,
@@ -144,8 +181,89 @@ fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Collect { study, out } => {
             let rows = collect(&Study::load(&study)?, &out)?;
             summarise(&rows, &out)?;
-            Ok(exit_code(&rows))
+            Ok(exit_code(rows.iter().map(|r| r.verdict)))
         }
+    }
+}
+
+/// Prints each configuration's summary, the Pareto front and the files; each run that is not
+/// complete or has no errors on stderr.
+fn print_precision(table: &precision::Precision, out: &std::path::Path) -> std::io::Result<()> {
+    for row in table.rows.iter().filter(|r| r.problem.is_some()) {
+        eprintln!(
+            "configuration {} repeat {} {}: {}",
+            row.configuration,
+            row.repeat,
+            row.verdict.map_or("not run", Status::name),
+            row.problem.as_deref().unwrap_or_default()
+        );
+    }
+    let figure = |v: Option<f64>, digits: usize| {
+        v.map_or_else(|| "-".to_owned(), |v| format!("{v:.digits$}"))
+    };
+    scanhil_protocol::outln!(
+        "{:>3} {:>8} {:>17} {:>14} {:>10} {:>10} {:>11}  choices",
+        "cfg",
+        "time_s",
+        "[min - max]",
+        "tracking_urad",
+        "height_mm",
+        "dh_um",
+        "surface_um"
+    )?;
+    for s in &table.summaries {
+        let time = s.run_time_s;
+        scanhil_protocol::outln!(
+            "{:>3} {:>8} {:>17} {:>14} {:>10} {:>10} {:>11}{} {}",
+            s.configuration,
+            figure(time.map(|t| t.median), 4),
+            time.map_or_else(
+                || "-".to_owned(),
+                |t| format!("[{:.4} - {:.4}]", t.min, t.max)
+            ),
+            figure(s.tracking_vs_reference_urad, 3),
+            figure(s.stud_height_mm, 4),
+            figure(s.stud_height_vs_reference_um, 2),
+            figure(s.surface_rms_um, 1),
+            if s.pareto { " *" } else { "  " },
+            precision::name(s)
+        )?;
+    }
+    let front: Vec<String> = table
+        .summaries
+        .iter()
+        .filter(|s| s.pareto)
+        .map(|s| s.configuration.to_string())
+        .collect();
+    scanhil_protocol::outln!(
+        "Pareto front (*: not beaten in time and all three errors at once): configurations {}",
+        front.join(", ")
+    )?;
+    scanhil_protocol::outln!(
+        "wrote {}, {}, {} and {}",
+        out.join(precision::PRECISION_CSV).display(),
+        out.join(precision::PRECISION_JSON).display(),
+        out.join(precision::PRECISION_SVG).display(),
+        out.join(precision::PRECISION_PNG).display()
+    )
+}
+
+/// As [`exit_code`] over the runs; when every run is complete but one has an error missing
+/// (a record that could not be read: its row says why), 4.
+fn precision_exit_code(table: &precision::Precision) -> ExitCode {
+    let all_complete = table
+        .rows
+        .iter()
+        .all(|r| r.verdict == Some(Status::Complete));
+    let errors_missing = table.rows.iter().any(|r| {
+        r.tracking_vs_reference_urad.is_none()
+            || r.stud_height_vs_reference_um.is_none()
+            || r.surface_rms_um.is_none()
+    });
+    if all_complete && errors_missing {
+        ExitCode::from(Status::Failed.exit_code())
+    } else {
+        exit_code(table.rows.iter().map(|r| r.verdict))
     }
 }
 
@@ -165,12 +283,11 @@ fn summarise(rows: &[Row], out: &std::path::Path) -> std::io::Result<()> {
     )
 }
 
-/// 0 when every variant is complete; 3 when one stopped early or has no report; else 4 when
-/// one completed with a result that is not valid (their rows say why), as `scanhil scan`.
-fn exit_code(rows: &[Row]) -> ExitCode {
-    let worst = rows
-        .iter()
-        .map(|row| row.verdict.unwrap_or(Status::Stopped))
+/// 0 when every run is complete; 3 when one stopped early or has no report; else 4 when one
+/// completed with a result that is not valid (their rows say why), as `scanhil scan`.
+fn exit_code(verdicts: impl Iterator<Item = Option<Status>>) -> ExitCode {
+    let worst = verdicts
+        .map(|verdict| verdict.unwrap_or(Status::Stopped))
         .map(Status::exit_code)
         .max_by_key(|code| match code {
             0 => 0,

@@ -12,6 +12,9 @@ use serde_json::Value;
 /// The most variants one study may expand to: each is a folder of files and a scan.
 pub const MAX_VARIANTS: usize = 10_000;
 
+/// The most runs of each variant a precision study may ask for (`repeats`).
+pub const MAX_REPEATS: usize = 100;
+
 /// The documents a study key can address.
 const DOCUMENTS: [&str; 4] = ["scenario", "scene", "controller", "rig"];
 /// The scenario fields that hold file paths (relative to the file that names them).
@@ -34,6 +37,12 @@ pub struct Study {
     pub outputs: Option<OutputsConfig>,
     /// One map of `key -> value` per variant, in order.
     pub variants: Vec<BTreeMap<String, Value>>,
+    /// How many times `scanhil-study precision` runs each variant (1 to [`MAX_REPEATS`],
+    /// default 1), so each run time carries its spread; `run` runs each variant once.
+    pub repeats: usize,
+    /// The index (from 0, in variant order) of the exact reference that
+    /// `scanhil-study precision` measures the other variants against.
+    pub reference: Option<usize>,
 }
 
 #[derive(Deserialize)]
@@ -49,6 +58,10 @@ struct StudyFile {
     list: Option<Vec<BTreeMap<String, Value>>>,
     #[serde(default)]
     outputs: Option<OutputsConfig>,
+    #[serde(default)]
+    repeats: Option<usize>,
+    #[serde(default)]
+    reference: Option<usize>,
 }
 
 impl Study {
@@ -57,7 +70,8 @@ impl Study {
     /// # Errors
     /// A file that cannot be read or parsed (file, line, column), a key that names no
     /// document, an empty value list, both or neither of `grid` and `list`, more than
-    /// [`MAX_VARIANTS`] variants.
+    /// [`MAX_VARIANTS`] variants, `repeats` outside 1 to [`MAX_REPEATS`], a `reference` that
+    /// is not the index of a variant.
     pub fn load(path: &Path) -> anyhow::Result<Study> {
         Study::from_json_str(&json_file::read_text(path, "study")?, path)
     }
@@ -80,6 +94,21 @@ impl Study {
         for key in variants.iter().flat_map(BTreeMap::keys) {
             check_key(key).with_context(|| path.display().to_string())?;
         }
+        let repeats = file.repeats.unwrap_or(1);
+        if !(1..=MAX_REPEATS).contains(&repeats) {
+            bail!(
+                "{}: `repeats` is {repeats}; expected 1 to {MAX_REPEATS}",
+                path.display()
+            );
+        }
+        if let Some(reference) = file.reference.filter(|&r| r >= variants.len()) {
+            bail!(
+                "{}: `reference` is {reference}, but the variants are numbered 0 to {} (the \
+                 index of the reference's entry, from 0)",
+                path.display(),
+                variants.len() - 1
+            );
+        }
         let base = path.parent().unwrap_or(Path::new("."));
         Ok(Study {
             path: path.to_owned(),
@@ -88,6 +117,8 @@ impl Study {
             scenario: base.join(file.scenario),
             outputs: file.outputs,
             variants,
+            repeats,
+            reference: file.reference,
         })
     }
 

@@ -20,40 +20,68 @@ pub enum VariantOutcome {
     Failed(String),
 }
 
+/// One scan to run: a variant's scenario file and the folder its outputs go to.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScanJob {
+    /// The variant's index (0-based, for messages).
+    pub variant: usize,
+    /// Its scenario file.
+    pub scenario: PathBuf,
+    /// The result folder the run writes.
+    pub result: PathBuf,
+}
+
 /// Runs the variants whose scenario files are `scenarios` (in the order of
 /// [`Study::write_variants`]) on `jobs` threads (at least 1); each writes
 /// `<its folder>/result/`. Returns each variant's outcome in order.
 #[must_use]
 pub fn run_variants(study: &Study, scenarios: &[PathBuf], jobs: usize) -> Vec<VariantOutcome> {
+    let scans: Vec<ScanJob> = scenarios
+        .iter()
+        .enumerate()
+        .map(|(variant, scenario)| ScanJob {
+            variant,
+            scenario: scenario.clone(),
+            result: result_dir(scenario),
+        })
+        .collect();
+    run_scans(study, &scans, jobs)
+}
+
+/// Runs `scans` on `jobs` threads (at least 1), taken in order: with one thread, one after
+/// another. A scan that cannot run leaves its reason in its result folder
+/// ([`FAILURE_FILE`]). Returns each scan's outcome in order.
+#[must_use]
+pub fn run_scans(study: &Study, scans: &[ScanJob], jobs: usize) -> Vec<VariantOutcome> {
     let next = AtomicUsize::new(0);
-    let outcomes: Mutex<Vec<Option<VariantOutcome>>> = Mutex::new(vec![None; scenarios.len()]);
-    let bar = indicatif::ProgressBar::new(scenarios.len() as u64);
+    let outcomes: Mutex<Vec<Option<VariantOutcome>>> = Mutex::new(vec![None; scans.len()]);
+    let bar = indicatif::ProgressBar::new(scans.len() as u64);
     bar.set_style(
         indicatif::ProgressStyle::with_template(
-            "{prefix} [{bar:40}] {pos}/{len} variants, {elapsed} (eta {eta})",
+            "{prefix} [{bar:40}] {pos}/{len} scans, {elapsed} (eta {eta})",
         )
         .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar())
         .progress_chars("=> "),
     );
     bar.set_prefix(study.name.clone());
     std::thread::scope(|scope| {
-        for _ in 0..jobs.max(1).min(scenarios.len().max(1)) {
+        for _ in 0..jobs.max(1).min(scans.len().max(1)) {
             scope.spawn(|| {
                 loop {
                     let i = next.fetch_add(1, Ordering::Relaxed);
-                    let Some(scenario) = scenarios.get(i) else {
+                    let Some(scan) = scans.get(i) else {
                         break;
                     };
-                    let outcome = run_one(scenario).unwrap_or_else(|error| {
+                    let outcome = run_one(scan).unwrap_or_else(|error| {
                         let message = scanhil_protocol::error_text::chain_text(&*error);
                         bar.suspend(|| {
                             eprintln!(
                                 "variant {} ({}): {message}",
-                                i + 1,
-                                describe(&study.variants[i])
+                                scan.variant + 1,
+                                describe(&study.variants[scan.variant])
                             );
                         });
-                        record_failure(scenario, &message);
+                        record_failure(&scan.result, &message);
                         VariantOutcome::Failed(message)
                     });
                     if let Ok(mut outcomes) = outcomes.lock() {
@@ -81,18 +109,17 @@ fn result_dir(scenario_path: &Path) -> PathBuf {
         .join(RESULT_DIR)
 }
 
-/// Runs one variant's scenario in process into `<its folder>/result/`.
-fn run_one(scenario_path: &Path) -> anyhow::Result<VariantOutcome> {
-    let scenario = Scenario::load(scenario_path)?;
-    crate::in_process::run(&scenario, Some(&result_dir(scenario_path)))?;
+/// Runs one scan in process into its result folder.
+fn run_one(scan: &ScanJob) -> anyhow::Result<VariantOutcome> {
+    let scenario = Scenario::load(&scan.scenario)?;
+    crate::in_process::run(&scenario, Some(&scan.result))?;
     Ok(VariantOutcome::Ran)
 }
 
-/// Keeps why a variant could not run in its result folder, for the table
+/// Keeps why a scan could not run in its result folder `dir`, for the table
 /// ([`super::table::FAILURE_FILE`]); best effort, the message is printed as well.
-fn record_failure(scenario_path: &Path, message: &str) {
-    let dir = result_dir(scenario_path);
-    let _ = std::fs::create_dir_all(&dir);
+fn record_failure(dir: &Path, message: &str) {
+    let _ = std::fs::create_dir_all(dir);
     let _ = std::fs::write(dir.join(FAILURE_FILE), format!("{message}\n"));
 }
 

@@ -40,6 +40,9 @@ pub struct Row {
     pub coverage: Option<f64>,
     /// Median |error| of the measured cells against the true surface, mm.
     pub median_abs_error_mm: Option<f64>,
+    /// Rms error of the measured cells against the true surface, mm (the cells that straddle
+    /// a step weigh in, which the median leaves out).
+    pub rms_error_mm: Option<f64>,
     /// Wall time of the scan, s (as the runner measured it).
     pub run_time_s: Option<f64>,
     /// The scene's active parts with what each costs per control period (the emulator's
@@ -62,6 +65,13 @@ impl Row {
     #[must_use]
     pub fn from_result(study: &Study, out_dir: &Path, index: usize) -> Row {
         let result = variant_dir(out_dir, index).join(RESULT_DIR);
+        Row::from_result_dir(study, index, &result)
+    }
+
+    /// The row of variant `index` (0-based) from the result folder `result` (its
+    /// `report.json`, or [`FAILURE_FILE`] when the run could not start).
+    #[must_use]
+    pub fn from_result_dir(study: &Study, index: usize, result: &Path) -> Row {
         let report_path = result.join("report.json");
         let mut row = Row {
             variant: index + 1,
@@ -74,6 +84,7 @@ impl Row {
             tracking_rms_relative_beta: None,
             coverage: None,
             median_abs_error_mm: None,
+            rms_error_mm: None,
             run_time_s: None,
             parts: Vec::new(),
         };
@@ -120,6 +131,7 @@ impl Row {
         row.tracking_rms_relative_beta = number("/tracking_error/frame/beta/rms_relative");
         row.coverage = number("/imaging/coverage_fraction");
         row.median_abs_error_mm = number("/imaging/truth_error/covered_median_abs_mm");
+        row.rms_error_mm = number("/imaging/truth_error/covered_rms_mm");
         row.run_time_s = number("/run_time_s");
         row.parts = report
             .pointer("/emulator/summary/parts/parts")
@@ -190,7 +202,7 @@ pub fn collect(study: &Study, out_dir: &Path) -> anyhow::Result<Vec<Row>> {
 }
 
 /// The figure columns after the variant number and the parameters.
-const FIGURE_COLUMNS: [&str; 10] = [
+const FIGURE_COLUMNS: [&str; 11] = [
     "verdict",
     "stud_height_mm",
     "stud_std_mm",
@@ -198,6 +210,7 @@ const FIGURE_COLUMNS: [&str; 10] = [
     "tracking_rms_relative_beta",
     "coverage",
     "median_abs_error_mm",
+    "rms_error_mm",
     "run_time_s",
     "parts_us_per_period",
     "problem",
@@ -224,11 +237,7 @@ pub fn write_csv(out: &mut impl Write, keys: &[String], rows: &[Row]) -> std::io
     let figure = |v: Option<f64>| v.map_or(String::new(), |v| v.to_string());
     for row in rows {
         let mut cells = vec![row.variant.to_string()];
-        cells.extend(keys.iter().map(|k| match row.parameters.get(k) {
-            None => String::new(),
-            Some(Value::String(s)) => s.clone(),
-            Some(other) => other.to_string(),
-        }));
+        cells.extend(keys.iter().map(|k| parameter_cell(row.parameters.get(k))));
         cells.push(row.verdict.map_or(String::new(), |v| v.name().to_owned()));
         cells.extend(
             [
@@ -238,6 +247,7 @@ pub fn write_csv(out: &mut impl Write, keys: &[String], rows: &[Row]) -> std::io
                 row.tracking_rms_relative_beta,
                 row.coverage,
                 row.median_abs_error_mm,
+                row.rms_error_mm,
                 row.run_time_s,
             ]
             .map(figure),
@@ -259,8 +269,17 @@ pub fn write_csv(out: &mut impl Write, keys: &[String], rows: &[Row]) -> std::io
     Ok(())
 }
 
+/// A parameter's CSV cell: a string as it is, any other value as JSON, empty when unset.
+pub(crate) fn parameter_cell(value: Option<&Value>) -> String {
+    match value {
+        None => String::new(),
+        Some(Value::String(s)) => s.clone(),
+        Some(other) => other.to_string(),
+    }
+}
+
 /// A CSV cell, quoted when it holds a comma, a quote or a line break.
-fn quote(cell: &str) -> String {
+pub(crate) fn quote(cell: &str) -> String {
     if cell.contains([',', '"', '\n', '\r']) {
         format!("\"{}\"", cell.replace('"', "\"\""))
     } else {
@@ -288,6 +307,7 @@ mod tests {
             tracking_rms_relative_beta: None,
             coverage: None,
             median_abs_error_mm: None,
+            rms_error_mm: Some(0.25),
             run_time_s: Some(0.5),
             parts: vec![
                 PartTime {
@@ -309,11 +329,11 @@ mod tests {
             lines[0],
             "variant,scenario.controller,scenario.seed,verdict,stud_height_mm,stud_std_mm,\
              tracking_rms_relative_alpha,tracking_rms_relative_beta,coverage,\
-             median_abs_error_mm,run_time_s,parts_us_per_period,problem"
+             median_abs_error_mm,rms_error_mm,run_time_s,parts_us_per_period,problem"
         );
         assert_eq!(
             lines[1],
-            "1,\"/a,b.json\",3,stopped,4.66,,,,,,0.5,axes:0.020 sensor:1.416,\"link timeout: \"\"x\"\"\""
+            "1,\"/a,b.json\",3,stopped,4.66,,,,,,0.25,0.5,axes:0.020 sensor:1.416,\"link timeout: \"\"x\"\"\""
         );
     }
 }
