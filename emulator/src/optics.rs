@@ -734,7 +734,49 @@ mod tests {
             // The distance is the one without the receiver model (one sample).
             let plain = optics(plane, OpticsConfig::default()).observe(angles(a, b));
             assert_eq!(z_meas(&plain), z_meas_mm);
+            // A 7-ray spot's intensity is its rays' mean: on the plane, nearly the centre's.
+            let seven = OpticsConfig {
+                spot: Some(SpotConfig {
+                    diameter_mm: DEFAULT_SPOT_DIAMETER_MM,
+                    samples: 7,
+                }),
+                ..OpticsConfig::default()
+            };
+            let spot = optics(plane, seven.clone()).with_receiver(model);
+            let OpticalOutcome::Distance { intensity, .. } = spot.observe(angles(a, b)).outcome
+            else {
+                panic!("a distance")
+            };
+            assert!(
+                (intensity / expected - 1.0).abs() < 0.01,
+                "{intensity} {expected}"
+            );
+            // A black finish sends no light: the spot is still placed (by its plain mean), with
+            // intensity 0, for the receiver to call too dark.
+            let black = optics(plane, seven.clone()).with_receiver(ReceiverModel {
+                intensity: Some(SurfaceFinish {
+                    reflectance: 0.0,
+                    ..finish
+                }),
+                speckle: None,
+            });
+            let dark = black.observe(angles(a, b)).outcome;
+            let lit = optics(plane, seven).observe(angles(a, b));
+            assert_eq!(
+                dark,
+                OpticalOutcome::Distance {
+                    z_meas_mm: z_meas(&lit),
+                    intensity: 0.0
+                }
+            );
         }
+        // Nothing on the beam stays a miss with the receiver model.
+        let sphere = r#"{"kind": "sphere", "radius_mm": 1.0, "center_distance_mm": 130.0, "center_x_mm": 50.0}"#;
+        let empty = optics(sphere, OpticsConfig::default()).with_receiver(model);
+        assert_eq!(
+            empty.observe(angles(0.0, 0.0)).outcome,
+            OpticalOutcome::Miss
+        );
         // A spot across a step's two levels (its wall samples grazing, so shaded): its
         // distance leans to the brighter, nearer level, against the plain mean of its samples.
         let step = r#"{"kind": "step", "distance_mm": 126.0, "height_mm": -4.0, "axis": "y", "edge_mm": -13.0}"#;
@@ -801,6 +843,14 @@ mod tests {
                 let sin_theta = r.beam.direction.normalize().cross(&path.direction).norm();
                 let cos_inc = -r.beam.direction.normalize().z;
                 let rms = speckle.rms_mm(z_meas(&r), sin_theta, cos_inc);
+                // The error is the field's at the spot, added to the distance.
+                let expected = speckle.error_mm(
+                    &r.spot_mm.unwrap(),
+                    z_meas(&plain.observe(angles(a, b))),
+                    sin_theta,
+                    cos_inc,
+                );
+                assert!((error - expected).abs() < 1e-9, "{error} {expected}");
                 sum_sq += (error / rms).powi(2);
                 n += 1.0;
             }

@@ -731,7 +731,23 @@ mod tests {
         };
         assert!(Ild2300::new(&whole_cycle, 0, false).is_ok());
         let c: SensorConfig = serde_json::from_str(r#"{"exposure_us": 20.0}"#).unwrap();
-        assert_eq!(c.exposure_us, 20.0);
+        assert_eq!(
+            c,
+            SensorConfig {
+                exposure_us: 20.0,
+                ..SensorConfig::default()
+            }
+        );
+        // The receiver's defaults: 670 nm, 12 mm, limits 0.01 and 10.
+        assert_eq!(
+            (
+                c.wavelength_nm,
+                c.receiver_aperture_mm,
+                c.intensity_dark_below,
+                c.intensity_saturated_above
+            ),
+            (670.0, 12.0, 0.01, 10.0)
+        );
     }
 
     #[test]

@@ -297,6 +297,9 @@ mod tests {
         // Facing away from either: dark.
         assert_eq!(intensity(&white, &up, &-up, &up, 100.0), 0.0);
         assert_eq!(intensity(&white, &up, &up, &-up, 100.0), 0.0);
+        // No distance, no light.
+        assert_eq!(intensity(&white, &up, &up, &up, 0.0), 0.0);
+        assert_eq!(intensity(&white, &up, &up, &up, f64::NAN), 0.0);
     }
 
     #[test]
@@ -345,6 +348,8 @@ mod tests {
         // sigma = lambda / (4 pi): phase rms 1 rad, contrast sqrt(1 - 1/e).
         let one_radian = speckle(0.670 / (4.0 * std::f64::consts::PI));
         assert!((one_radian.contrast(1.0) - (1.0 - (-1.0f64).exp()).sqrt()).abs() < 1e-12);
+        // Light arriving obliquely sees the heights foreshortened: half the phase at 60 deg.
+        assert!((one_radian.contrast(0.5) - (1.0 - (-0.25f64).exp()).sqrt()).abs() < 1e-12);
         assert!((speckle(1.0).contrast(1.0) - 1.0).abs() < 1e-12);
         // Dorsch et al.'s uncertainty: lambda / (2 pi sin u sin theta) at C = 1.
         let rough = speckle(5.0);
@@ -394,12 +399,64 @@ mod tests {
             "{}",
             correlation(2.0 * pitch)
         );
-        // Never NaN, even far away or at non-finite points.
+        // Never NaN, even far away or at non-finite points; beyond 1e15 pitches, none.
         assert_eq!(
             speckle_field(1, &Point3::new(f64::NAN, 0.0, 0.0), pitch),
             0.0
         );
         assert!(speckle_field(1, &Point3::new(1e12, -1e12, 3.0), pitch).is_finite());
+        assert_eq!(speckle_field(1, &Point3::new(0.0, 1e15, 0.0), 0.5), 0.0);
+        // Seeds differing in any low bit give other patterns.
+        let pattern = |seed| speckle_field(seed, &Point3::new(0.37, 0.41, -130.0), pitch);
+        assert!(pattern(0) != pattern(1) && pattern(0) != pattern(2) && pattern(1) != pattern(2));
+    }
+
+    #[test]
+    fn the_speckle_field_interpolates_its_lattice_values_at_unit_variance() {
+        let (seed, pitch) = (9, 0.5);
+        let g = |i: i64, j: i64, k: i64| lattice_gaussian(seed, [i, j, k]);
+        let at = |x: f64, y: f64, z: f64| speckle_field(seed, &Point3::new(x, y, z), pitch);
+        // On a lattice corner: that corner's value.
+        assert_eq!(at(1.0, -1.5, 2.0), g(2, -3, 4));
+        // A quarter of the way along x: smoothstep weights 1 - s and s, s = 5/32, normalised.
+        let s = 5.0 / 32.0;
+        let expected =
+            ((1.0 - s) * g(2, -3, 4) + s * g(3, -3, 4)) / ((1.0 - s).powi(2) + s * s).sqrt();
+        assert!((at(1.125, -1.5, 2.0) - expected).abs() < 1e-12);
+        // A cell's centre: the mean of its eight corners times sqrt(8).
+        let corners: f64 = (0..8)
+            .map(|c| g(2 + (c & 1), -3 + ((c >> 1) & 1), 4 + ((c >> 2) & 1)))
+            .sum();
+        assert!((at(1.25, -1.25, 2.25) - corners / 8f64.sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn lattice_values_are_independent_standard_gaussians() {
+        let values: Vec<f64> = (0..40_000i64)
+            .map(|k| lattice_gaussian(3, [k % 200, k / 200, -7]))
+            .collect();
+        let n = values.len() as f64;
+        let mean = values.iter().sum::<f64>() / n;
+        let rms = (values.iter().map(|v| v * v).sum::<f64>() / n).sqrt();
+        let within = |sigmas: f64| values.iter().filter(|v| v.abs() < sigmas).count() as f64 / n;
+        assert!(
+            mean.abs() < 0.02 && (rms - 1.0).abs() < 0.02,
+            "{mean} {rms}"
+        );
+        assert!((within(1.0) - 0.6827).abs() < 0.01, "{}", within(1.0));
+        assert!((within(2.0) - 0.9545).abs() < 0.005, "{}", within(2.0));
+        let neighbours = values.windows(2).map(|w| w[0] * w[1]).sum::<f64>() / n;
+        assert!(neighbours.abs() < 0.02, "{neighbours}");
+    }
+
+    #[test]
+    fn splitmix64_is_the_reference_generator() {
+        // SplitMix64 seeded with 0 (Steele, Lea and Flood; the sequence Java's
+        // SplittableRandom and Vigna's reference code give): state k * gamma, mixed.
+        let gamma = 0x9E37_79B9_7F4A_7C15u64;
+        assert_eq!(splitmix64(0), 0xE220_A839_7B1D_CDAF);
+        assert_eq!(splitmix64(gamma), 0x6E78_9E6A_A1B9_65F4);
+        assert_eq!(splitmix64(gamma.wrapping_mul(2)), 0x06C4_5D18_8009_454F);
     }
 
     #[test]
@@ -439,9 +496,44 @@ mod tests {
                 },
                 "surface_finish.gloss.share",
             ),
+            (
+                SurfaceFinish {
+                    roughness_um: -1.0,
+                    ..SurfaceFinish::default()
+                },
+                "surface_finish.roughness_um",
+            ),
+            (
+                SurfaceFinish {
+                    gloss: Some(Gloss {
+                        share: 0.04,
+                        width_deg: 46.0,
+                    }),
+                    ..SurfaceFinish::default()
+                },
+                "surface_finish.gloss.width_deg",
+            ),
         ] {
             assert_eq!(finish.validate().unwrap_err().0, field);
         }
+        let glossy = SurfaceFinish {
+            gloss: Some(Gloss {
+                share: 0.04,
+                width_deg: 45.0,
+            }),
+            ..SurfaceFinish::default()
+        };
+        assert!(glossy.validate().is_ok());
         assert!(SurfaceFinish::default().validate().is_ok());
+    }
+
+    #[test]
+    fn a_finish_left_out_is_a_matte_plastic_face() {
+        let finish: SurfaceFinish = serde_json::from_str("{}").unwrap();
+        assert_eq!(finish, SurfaceFinish::default());
+        assert_eq!(
+            (finish.reflectance, finish.roughness_um, finish.gloss),
+            (0.5, 0.2, None)
+        );
     }
 }
