@@ -276,3 +276,37 @@ fn a_study_under_a_relative_out_runs_every_variant_and_its_table_carries_each_ve
         "{stderr}"
     );
 }
+
+#[test]
+fn every_shipped_study_writes_variants_the_host_and_the_emulator_accept() {
+    let dir = root().join("fixtures/studies");
+    let mut studies = 0;
+    for entry in std::fs::read_dir(&dir).expect("fixtures/studies") {
+        let path = entry.expect("an entry").path();
+        if path.extension().is_none_or(|e| e != "json") {
+            continue;
+        }
+        let out = tempfile::tempdir().expect("a temporary folder");
+        let study = Study::load(&path).unwrap_or_else(|e| panic!("{}: {e:#}", path.display()));
+        let scenarios = study
+            .write_variants(out.path())
+            .unwrap_or_else(|e| panic!("{}: {e:#}", path.display()));
+        assert!(!scenarios.is_empty(), "{}", path.display());
+        for scenario in &scenarios {
+            let fail = |e: &dyn std::fmt::Display| -> ! {
+                panic!("{}: {}: {e:#}", path.display(), scenario.display())
+            };
+            Scenario::load(scenario).unwrap_or_else(|e| fail(&e));
+            // The scene a variant changes is checked as the emulator will read it.
+            let text = std::fs::read_to_string(scenario).unwrap_or_else(|e| fail(&e));
+            let json: serde_json::Value = serde_json::from_str(&text).unwrap_or_else(|e| fail(&e));
+            let scene = scenario
+                .parent()
+                .expect("a folder")
+                .join(json["scene"].as_str().expect("a scene path"));
+            scanhil_emulator::scene::Scene::load(&scene).unwrap_or_else(|e| fail(&e));
+        }
+        studies += 1;
+    }
+    assert!(studies >= 4, "{studies} studies in {}", dir.display());
+}
