@@ -409,9 +409,9 @@ impl Optics {
                 }
             }
         }
+        // The centre is always a sample and was hit, so with none seen one was shaded.
         let outcome = match (count, first_shade) {
-            (0, Some(reason)) => OpticalOutcome::Shaded(reason),
-            (0, None) => OpticalOutcome::Miss,
+            (0, reason) => reason.map_or(OpticalOutcome::Miss, OpticalOutcome::Shaded),
             _ => {
                 // Samples that send no light still place the spot when none sends any (the
                 // receiver then calls it too dark).
