@@ -231,7 +231,7 @@ fn draw_on<DB: DrawingBackend>(
             }
         }
         ctx.configure_series_labels()
-            .background_style(WHITE.mix(0.8))
+            .background_style(WHITE.mix(0.5))
             .border_style(BLACK)
             .draw()
             .map_err(|e| drawing(&e))?;

@@ -584,7 +584,7 @@ pub fn write_csv(
 type SummaryFigure = fn(&Summary) -> Option<f64>;
 
 /// One log-log panel per error: each configuration at its median run time with a bar from
-/// its least to its largest, and the Pareto front connected in order of time. An error of 0
+/// its least to its largest, and the Pareto front's members marked. An error of 0
 /// (the reference's, and any configuration's equal to it) is drawn below the smallest
 /// nonzero one ([`LogZero`]); the axis label says so.
 #[must_use]
@@ -611,12 +611,11 @@ pub fn charts(precision: &Precision) -> Vec<Chart> {
                     Some((s, s.run_time_s?, zero.map_or(e, |z| z.place(e))))
                 })
                 .collect();
-            let mut front: Vec<(f64, f64)> = placed
+            let front: Vec<(f64, f64)> = placed
                 .iter()
                 .filter(|(s, ..)| s.pareto)
                 .map(|(_, t, e)| (t.median, *e))
                 .collect();
-            front.sort_by(|a, b| a.0.total_cmp(&b.0));
             let note = zero.map_or_else(String::new, |z| z.note("the reference's"));
             Chart {
                 title: format!(
@@ -648,8 +647,10 @@ pub fn charts(precision: &Precision) -> Vec<Chart> {
                         markers: false,
                     },
                     Series {
-                        label: "Pareto front (time and all three errors)".into(),
-                        points: front,
+                        label: "on the Pareto front (time and all three errors)".into(),
+                        // Marked, not joined: the front is over four figures, and a line
+                        // through its members in one panel's two would read as a 2-D front.
+                        points: front.into_iter().flat_map(|point| [point, gap]).collect(),
                         markers: true,
                     },
                 ],
