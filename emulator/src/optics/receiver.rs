@@ -6,7 +6,7 @@
 //! fields of `sensor`:
 //!
 //! - **`receiver_intensity`**: each spot sample's light at the receiver, relative to a white
-//!   matte surface facing the receiver at the middle of the range ([`Receiver::intensity`]).
+//!   matte surface facing the receiver at the middle of the range ([`intensity`]).
 //!   A laser spot puts the beam's whole power on the surface whatever the incidence (the lit
 //!   area grows as the irradiance falls), so the power reaching the lens is the surface's
 //!   BRDF times `cos(view)` times the lens's solid angle: `I = pi BRDF cos(view) (L_ref/L)^2`.
