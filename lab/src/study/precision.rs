@@ -751,6 +751,11 @@ mod tests {
             Spread::of(&[4.0, 1.0, 2.0, 3.0]).map(|s| s.median),
             Some(2.5)
         );
+        // Five repeats, the study's count: the third of the sorted times.
+        assert_eq!(
+            Spread::of(&[0.5, 0.1, 0.4, 0.2, 0.3]).map(|s| s.median),
+            Some(0.3)
+        );
     }
 
     #[test]
