@@ -63,7 +63,8 @@ fn default_saturated_above() -> f64 {
     DEFAULT_INTENSITY_SATURATED_ABOVE
 }
 
-/// The ILD 2300's laser wavelength, nm (red; the data sheet's figure, see docs/decisions.md).
+/// The ILD 2300's laser wavelength, nm (red; recalled from the data sheet, not re-read here:
+/// docs/decisions.md).
 pub const DEFAULT_WAVELENGTH_NM: f64 = 670.0;
 /// The receiving lens's clear aperture, mm: assumed (not in the data sheet), a lens of this
 /// size fits the ILD 2300's receiver window.
