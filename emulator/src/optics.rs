@@ -352,6 +352,7 @@ impl Optics {
         let (mut weighted_mm, mut sum_intensity, mut plain_mm) = (0.0, 0.0, 0.0);
         let mut count = 0usize;
         let mut first_shade = None;
+        let mut centre_path = None;
         for &[a, b] in &self.spot_pattern {
             let offset = if a == 0.0 && b == 0.0 {
                 None
@@ -385,19 +386,23 @@ impl Optics {
                         }
                     };
                     let z_mm = beam.z_meas_at(t_mm / length);
+                    // The path to the receiver, found once: shading's, or traced here when the
+                    // intensity needs it (or the speckle, for the centre).
+                    let needs_path = self.receiver.intensity.is_some()
+                        || (offset.is_none() && self.receiver.speckle.is_some());
+                    let path = path.or_else(|| {
+                        needs_path
+                            .then(|| self.scanner.receiver_path(alpha, beta, &hit.point_mm))
+                            .flatten()
+                    });
+                    if offset.is_none() {
+                        centre_path = path;
+                    }
                     let intensity = match &self.receiver.intensity {
                         None => 1.0,
-                        Some(finish) => path
-                            .or_else(|| self.scanner.receiver_path(alpha, beta, &hit.point_mm))
-                            .map_or(0.0, |path| {
-                                receiver::intensity(
-                                    finish,
-                                    &hit.normal,
-                                    &-unit,
-                                    &path.direction,
-                                    z_mm,
-                                )
-                            }),
+                        Some(finish) => path.map_or(0.0, |path| {
+                            receiver::intensity(finish, &hit.normal, &-unit, &path.direction, z_mm)
+                        }),
                     };
                     weighted_mm += intensity * z_mm;
                     sum_intensity += intensity;
@@ -421,7 +426,8 @@ impl Optics {
                     plain_mm / count as f64
                 };
                 OpticalOutcome::Distance {
-                    z_meas_mm: z_mm + self.speckle_mm(alpha, beta, &unit, &center, z_mm),
+                    z_meas_mm: z_mm
+                        + self.speckle_mm(alpha, beta, &unit, &center, centre_path, z_mm),
                     intensity: sum_intensity / self.spot_pattern.len() as f64,
                 }
             }
@@ -465,22 +471,24 @@ impl Optics {
     }
 
     /// The speckle's centroid error for the spot centred on `center`, seen at `z_mm`, mm (0
-    /// without speckle, or without a path to the receiver).
+    /// without speckle, or without a path to the receiver). `centre_path` is the centre's
+    /// path if the samples found it (traced here when the centre was shaded).
     fn speckle_mm(
         &self,
         d_alpha: f64,
         d_beta: f64,
         unit_beam: &Vector3<f64>,
         center: &scanhil_scene::surface::Hit,
+        centre_path: Option<ReceiverPath>,
         z_mm: f64,
     ) -> f64 {
         let Some(speckle) = &self.receiver.speckle else {
             return 0.0;
         };
-        let Some(path) = self
-            .scanner
-            .receiver_path(d_alpha, d_beta, &center.point_mm)
-        else {
+        let Some(path) = centre_path.or_else(|| {
+            self.scanner
+                .receiver_path(d_alpha, d_beta, &center.point_mm)
+        }) else {
             return 0.0;
         };
         let sin_triangulation = unit_beam.cross(&path.direction).norm();
